@@ -1,0 +1,160 @@
+"""One place that checks input.
+
+Each helper takes the user's value and the argument's public name, and returns a clean NumPy
+array (float64 for geometry) or raises a :class:`~camkit.errors.CamkitError` whose message
+names the argument, what was expected and what came.
+"""
+
+from __future__ import annotations
+
+import numbers
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from camkit.errors import ParameterError, ShapeError
+
+__all__ = [
+    "as_finite_float",
+    "as_matrix",
+    "as_points",
+    "as_positive_float",
+    "as_positive_int",
+    "as_real_array",
+    "as_rotation_matrix",
+    "check_choice",
+]
+
+_ROTATION_TOL = 1e-6
+
+
+def _kind_of(x: Any) -> str:
+    if isinstance(x, np.ndarray):
+        return f"array of dtype {x.dtype}"
+    return type(x).__name__
+
+
+def as_real_array(x: Any, name: str) -> np.ndarray:
+    """Return ``x`` as a float64 array, refusing complex, boolean, object and string input."""
+    if isinstance(x, np.ndarray):
+        arr = x
+    else:
+        try:
+            arr = np.asarray(x)
+        except (ValueError, TypeError) as exc:  # ragged nested sequences
+            raise ShapeError(f"{name}: expected a real numeric array, got {_kind_of(x)} ({exc})")\
+                from None
+    if arr.dtype.kind not in "iuf":
+        raise ShapeError(f"{name}: expected a real numeric array, got {_kind_of(arr)}")
+    return np.asarray(arr, dtype=np.float64)
+
+
+def _check_finite(arr: np.ndarray, name: str) -> None:
+    if arr.size and not np.isfinite(arr).all():
+        bad = np.argwhere(~np.isfinite(arr))[0]
+        raise ParameterError(
+            f"{name}: expected finite values, got {arr[tuple(bad)]} at index {tuple(int(i) for i in bad)}"
+        )
+
+
+def as_points(x: Any, k: int, name: str, *, finite: bool = True) -> np.ndarray:
+    """Return ``x`` as a float64 array of shape ``(..., k)``.
+
+    Parameters
+    ----------
+    x : array_like, (..., k)
+        Points on the last axis.
+    k : int
+        Required length of the last axis.
+    name : str
+        Argument name for error messages.
+    finite : bool
+        Refuse NaN and infinities (the default).
+    """
+    arr = as_real_array(x, name)
+    if arr.ndim == 0 or arr.shape[-1] != k:
+        raise ShapeError(f"{name}: expected shape (..., {k}), got {arr.shape}")
+    if finite:
+        _check_finite(arr, name)
+    return arr
+
+
+def as_matrix(x: Any, shape: Sequence[int], name: str, *, finite: bool = True) -> np.ndarray:
+    """Return ``x`` as a float64 array of exactly ``shape``."""
+    arr = as_real_array(x, name)
+    if arr.shape != tuple(shape):
+        raise ShapeError(f"{name}: expected shape {tuple(shape)}, got {arr.shape}")
+    if finite:
+        _check_finite(arr, name)
+    return arr
+
+
+def as_rotation_matrix(x: Any, name: str, *, batched: bool = False) -> np.ndarray:
+    """Return ``x`` as float64 rotation matrices, checking orthonormality and det = +1.
+
+    With ``batched=False`` the shape must be exactly (3, 3); with ``batched=True`` it is
+    (..., 3, 3). The tolerance is 1e-6 on ``R R^T - I`` (max abs), which admits matrices
+    written with 7 significant digits and refuses reflections and shears.
+    """
+    arr = as_real_array(x, name)
+    if batched:
+        if arr.ndim < 2 or arr.shape[-2:] != (3, 3):
+            raise ShapeError(f"{name}: expected shape (..., 3, 3), got {arr.shape}")
+    elif arr.shape != (3, 3):
+        raise ShapeError(f"{name}: expected shape (3, 3), got {arr.shape}")
+    _check_finite(arr, name)
+    if arr.size:
+        err = np.abs(arr @ np.swapaxes(arr, -1, -2) - np.eye(3)).max(axis=(-1, -2))
+        worst = float(np.max(err))
+        if worst > _ROTATION_TOL:
+            raise ParameterError(
+                f"{name}: expected a rotation matrix (R R^T = I), got max |R R^T - I| = {worst:.3g}"
+            )
+        det = np.linalg.det(arr)
+        if np.any(det < 0):
+            raise ParameterError(
+                f"{name}: expected a rotation matrix with det(R) = +1, got a reflection "
+                f"(det = {float(np.min(det)):.6g})"
+            )
+    return arr
+
+
+def as_finite_float(x: Any, name: str) -> float:
+    """Return ``x`` as a finite Python float."""
+    if isinstance(x, bool) or not isinstance(x, numbers.Real | np.ndarray):
+        raise ParameterError(f"{name}: expected a finite real number, got {_kind_of(x)}")
+    if isinstance(x, np.ndarray):
+        if x.shape != () or x.dtype.kind not in "iuf":
+            raise ParameterError(f"{name}: expected a finite real number, got {_kind_of(x)} "
+                                 f"of shape {x.shape}")
+        x = x.item()
+    value = float(x)
+    if not np.isfinite(value):
+        raise ParameterError(f"{name}: expected a finite real number, got {value}")
+    return value
+
+
+def as_positive_float(x: Any, name: str) -> float:
+    """Return ``x`` as a finite float > 0."""
+    value = as_finite_float(x, name)
+    if value <= 0:
+        raise ParameterError(f"{name}: expected a positive number, got {value}")
+    return value
+
+
+def as_positive_int(x: Any, name: str) -> int:
+    """Return ``x`` as a Python int >= 1 (integral floats such as 640.0 are refused)."""
+    if isinstance(x, bool) or not isinstance(x, numbers.Integral):
+        raise ParameterError(f"{name}: expected a positive integer, got {x!r} ({_kind_of(x)})")
+    value = int(x)
+    if value < 1:
+        raise ParameterError(f"{name}: expected a positive integer, got {value}")
+    return value
+
+
+def check_choice(x: Any, choices: Sequence[str], name: str) -> str:
+    """Return ``x`` if it is one of ``choices``; else raise naming the valid ones."""
+    if not isinstance(x, str) or x not in choices:
+        raise ParameterError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {x!r}")
+    return x
