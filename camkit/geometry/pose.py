@@ -8,7 +8,7 @@ coordinates, ``X_cam = R X_world + t``. Poses compose with ``@`` like the matric
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -49,6 +49,10 @@ class Pose:
            [0., 0., 1., 0.],
            [0., 0., 0., 1.]])
     """
+
+    # NumPy defers binary operators to Pose, so ``pose @ array`` is a TypeError, not a
+    # silent elementwise broadcast.
+    __array_ufunc__: ClassVar[None] = None
 
     R: np.ndarray = field(default_factory=lambda: np.eye(3))
     t: np.ndarray = field(default_factory=lambda: np.zeros(3))

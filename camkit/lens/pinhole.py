@@ -89,10 +89,9 @@ class Pinhole(CameraModel):
 
         Examples
         --------
-        >>> Pinhole.from_physical(focal_length=0.004, pixel_pitch=2e-6, width=640, height=480).K
-        array([[2000. ,    0. ,  319.5],
-               [   0. , 2000. ,  239.5],
-               [   0. ,    0. ,    1. ]])
+        >>> cam = Pinhole.from_physical(focal_length=0.004, pixel_pitch=2e-6, width=640, height=480)
+        >>> round(cam.fx, 9), round(cam.fy, 9), cam.cx, cam.cy
+        (2000.0, 2000.0, 319.5, 239.5)
         """
         f = as_positive_float(focal_length, "focal_length")
         px, py = _pitch_pair(pixel_pitch)
