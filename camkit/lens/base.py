@@ -46,8 +46,9 @@ _M = TypeVar("_M", bound="type[CameraModel]")
 
 def register_model(cls: _M) -> _M:
     """Class decorator: add a model to :data:`MODELS` under its ``name``."""
-    if cls.name in MODELS and MODELS[cls.name] is not cls:
-        raise ParameterError(f"model name {cls.name!r} is already registered")
+    old = MODELS.get(cls.name)
+    if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
+        raise ParameterError(f"model name {cls.name!r} is already registered by {old.__qualname__}")
     MODELS[cls.name] = cls
     return cls
 

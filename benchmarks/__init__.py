@@ -1,0 +1,1 @@
+"""camkit's benchmarks: ``python -m benchmarks`` runs them all against their peers."""

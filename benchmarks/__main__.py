@@ -1,0 +1,56 @@
+"""Run every benchmark: ``python -m benchmarks [-k SUBSTRING] [--no-write]``.
+
+Prints a markdown table (camkit's median, the peer's median, the ratio, all measured in this
+run) and writes it to benchmarks/RESULTS.md with the date and the command.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as _dt
+import importlib
+import os
+import platform
+import sys
+from pathlib import Path
+
+from benchmarks.harness import markdown_table, run_case
+
+MODULES = ["bench_geometry"]
+RESULTS = Path(__file__).with_name("RESULTS.md")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(prog="python -m benchmarks")
+    parser.add_argument("-k", default="", help="run only cases whose operation contains this text")
+    parser.add_argument("--no-write", action="store_true", help="do not rewrite RESULTS.md")
+    args = parser.parse_args()
+
+    rows = []
+    for mod_name in MODULES:
+        mod = importlib.import_module(f"benchmarks.{mod_name}")
+        for case in mod.cases():
+            if args.k and args.k.lower() not in case.operation.lower():
+                continue
+            row = run_case(case)
+            print(f"  {case.operation} [{case.size}]: camkit {row.camkit_s * 1e3:.2f} ms, "
+                  f"{case.peer_name} {row.peer_s * 1e3:.2f} ms, ratio {row.ratio:.3f}",
+                  file=sys.stderr, flush=True)
+            rows.append(row)
+    table = markdown_table(rows)
+    print(table)
+    if not args.no_write and not args.k:
+        now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
+        machine = f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+        RESULTS.write_text(
+            "# Benchmark results\n\n"
+            f"Measured {now} on {machine} with `python -m benchmarks`.\n"
+            "Each time is the median of several repeats after warm-up calls (numba compilation\n"
+            "excluded); camkit and the peer were measured in the same run, so the ratio is what\n"
+            "counts on this shared, noisy machine.\n\n" + table
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""The ``camkit`` command line: parse arguments, call the public API, print."""
