@@ -58,7 +58,7 @@ def _check_finite(arr: np.ndarray, name: str) -> None:
         )
 
 
-def as_points(x: Any, k: int, name: str, *, finite: bool = True) -> np.ndarray:
+def as_points(x: Any, k: int, name: str, *, finite: bool = True, nan_rows: bool = False) -> np.ndarray:
     """Return ``x`` as a float64 array of shape ``(..., k)``.
 
     Parameters
@@ -71,12 +71,24 @@ def as_points(x: Any, k: int, name: str, *, finite: bool = True) -> np.ndarray:
         Argument name for error messages.
     finite : bool
         Refuse NaN and infinities (the default).
+    nan_rows : bool
+        Let rows that are entirely NaN through: camkit's own marker for "no value" (a point
+        that could not be projected), which mapping functions pass on as NaN rows. A row
+        that mixes NaN with numbers, or holds an infinity, is still refused.
     """
     arr = as_real_array(x, name)
     if arr.ndim == 0 or arr.shape[-1] != k:
         raise ShapeError(f"{name}: expected shape (..., {k}), got {arr.shape}")
-    if finite:
-        _check_finite(arr, name)
+    if finite and arr.size:
+        ok = np.isfinite(arr)
+        if not ok.all():
+            if nan_rows:
+                marker = np.isnan(arr).all(axis=-1, keepdims=True)
+                ok |= marker
+            if not ok.all():
+                bad = tuple(int(i) for i in np.argwhere(~ok)[0])
+                note = " (a row entirely NaN is allowed as a 'no value' marker)" if nan_rows else ""
+                raise ParameterError(f"{name}: expected finite values{note}, got {arr[bad]} at index {bad}")
     return arr
 
 

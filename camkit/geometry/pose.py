@@ -139,7 +139,7 @@ class Pose:
         -------
         ndarray, (..., 3), float64
         """
-        p = as_points(points, 3, "points")
+        p = as_points(points, 3, "points", nan_rows=True)
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         out = np.empty_like(flat)
         _kt.rigid_apply(self.R, self.t, flat, out)

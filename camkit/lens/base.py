@@ -177,7 +177,7 @@ class CameraModel(abc.ABC):
             NaN rows for points the model cannot image (behind a pinhole camera, outside
             the lens model's valid region).
         """
-        p = as_points(points_cam, 3, "points_cam")
+        p = as_points(points_cam, 3, "points_cam", nan_rows=True)
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         return self._project_rows(flat).reshape((*p.shape[:-1], 2))
 
@@ -197,7 +197,7 @@ class CameraModel(abc.ABC):
         ndarray, (..., 3), float64
             Unit vectors; NaN rows where the model is not invertible.
         """
-        p = as_points(pixels, 2, "pixels")
+        p = as_points(pixels, 2, "pixels", nan_rows=True)
         flat = np.ascontiguousarray(p.reshape(-1, 2))
         return self._unproject_rows(flat).reshape((*p.shape[:-1], 3))
 
@@ -245,7 +245,7 @@ class CameraModel(abc.ABC):
         d_pixels_d_params : ndarray, (..., 2, n_params)
             Columns in the order of ``param_names``.
         """
-        p = as_points(points_cam, 3, "points_cam")
+        p = as_points(points_cam, 3, "points_cam", nan_rows=True)
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         uv, dp, dk = self._jacobian_rows(flat)
         lead = p.shape[:-1]

@@ -142,6 +142,7 @@ def test_broadcasting_and_float32():
         (lambda: Pinhole(fx="1", fy=1.0, cx=0, cy=0, width=4, height=4), ParameterError, "fx: expected a finite"),
         (lambda: CAM.project(np.zeros((4, 2))), ShapeError, "points_cam: expected shape (..., 3), got (4, 2)"),
         (lambda: CAM.project([[0, np.nan, 1]]), ParameterError, "points_cam: expected finite"),
+        (lambda: CAM.project([[0, np.inf, 1]]), ParameterError, "points_cam: expected finite"),
         (lambda: CAM.unproject(np.zeros(3)), ShapeError, "pixels: expected shape (..., 2), got (3,)"),
         (lambda: CAM.unproject_depth([[1.0, 2.0]], -1.0), ParameterError, "depth: expected finite values > 0"),
         (lambda: CAM.unproject_depth(np.zeros((3, 2)), np.ones(4)), ShapeError, "depth: expected a shape"),
