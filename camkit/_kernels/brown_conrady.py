@@ -12,7 +12,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def distort(x: float, y: float, c: np.ndarray):  # pragma: no cover - numba
     """Ideal normalised (x, y) -> distorted (xd, yd), the 2x2 Jacobian d(xd, yd)/d(x, y), and
     the radial numerator and denominator (for parameter derivatives and validity)."""
@@ -37,7 +37,7 @@ def distort(x: float, y: float, c: np.ndarray):  # pragma: no cover - numba
     return xd, yd, j00, j01, j10, j11, num, den
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def valid_radius(c: np.ndarray, r_search: float, n_dirs: int, n_steps: int) -> float:  # pragma: no cover
     """Largest r such that, on every sampled direction, the distortion map is one-to-one on
     the disk of ideal radius r: the rational denominator stays positive, the Jacobian
@@ -64,7 +64,7 @@ def valid_radius(c: np.ndarray, r_search: float, n_dirs: int, n_steps: int) -> f
     return best
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
             out: np.ndarray) -> None:  # pragma: no cover
     """Pixels of camera points; NaN when z <= 0 or the ideal radius is outside the valid disk."""
@@ -83,7 +83,7 @@ def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
         out[i, 1] = np.nan
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
                      uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
     """Pixels, d(u, v)/d(X, Y, Z) and d(u, v)/d(params) in the order
@@ -159,7 +159,7 @@ def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid:
         dk[i, 1, 16] = fy * r2 * r2
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def undistort_one(xd: float, yd: float, c: np.ndarray, r2_valid: float, tol: float):  # pragma: no cover
     """Solve distort(x, y) = (xd, yd) for the ideal point inside the valid disk.
 
@@ -206,7 +206,7 @@ def undistort_one(xd: float, yd: float, c: np.ndarray, r2_valid: float, tol: flo
     return x, y, err <= tol * tol
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def unproject(px: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float, tol: float,
               out: np.ndarray) -> None:  # pragma: no cover
     """Unit rays through pixels; NaN where no ideal point in the valid disk images there."""

@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def theta_d(t: float, c: np.ndarray):  # pragma: no cover - numba
     """theta_d(theta) and its derivative."""
     t2 = t * t
@@ -20,7 +20,7 @@ def theta_d(t: float, c: np.ndarray):  # pragma: no cover - numba
     return t * poly, dpoly
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def valid_theta(c: np.ndarray, n_steps: int) -> float:  # pragma: no cover
     """Largest theta in [0, pi] up to which theta_d is strictly increasing (one-to-one)."""
     dt = math.pi / n_steps
@@ -31,7 +31,7 @@ def valid_theta(c: np.ndarray, n_steps: int) -> float:  # pragma: no cover
     return math.pi
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
             out: np.ndarray) -> None:  # pragma: no cover
     fx, fy, cx, cy, skew = intr[0], intr[1], intr[2], intr[3], intr[4]
@@ -52,7 +52,7 @@ def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
         out[i, 1] = fy * yd + cy
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
                      uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
     """Parameters: fx fy cx cy skew k1 k2 k3 k4 (dk zero-initialised)."""
@@ -120,7 +120,7 @@ def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: 
             tp *= t * t
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, error_model="numpy")
 def solve_theta(td: float, c: np.ndarray, t_valid: float, td_valid: float, tol: float):  # pragma: no cover
     """theta in [0, t_valid] with theta_d(theta) = td: Newton safeguarded by bisection on a
     bracket where theta_d is increasing, so it always converges. (theta, ok)."""
@@ -148,7 +148,7 @@ def solve_theta(td: float, c: np.ndarray, t_valid: float, td_valid: float, tol: 
     return t, abs(v - td) <= tol
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def unproject(px: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float, td_valid: float,
               tol: float, out: np.ndarray) -> None:  # pragma: no cover
     fx, fy, cx, cy, skew = intr[0], intr[1], intr[2], intr[3], intr[4]

@@ -12,7 +12,7 @@ from numba import njit, prange
 _SMALL_ANGLE = 1e-4
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def rvec_to_matrix(rvec: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Rodrigues' formula R = cos(t) I + sin(t)/t [r]x + (1-cos t)/t^2 r r^T, rows of (N, 3)."""
     for i in prange(rvec.shape[0]):
@@ -40,7 +40,7 @@ def rvec_to_matrix(rvec: np.ndarray, out: np.ndarray) -> None:  # pragma: no cov
         out[i, 2, 2] = c + b * z * z
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def matrix_to_quat(R: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Shepperd's method: pick the largest of w, x, y, z to divide by, so no branch loses
     precision (S. W. Shepperd, J. Guidance and Control 1(3), 1978, doi:10.2514/3.55767).
@@ -83,7 +83,7 @@ def matrix_to_quat(R: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover 
         out[i, 3] = z / n
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def quat_to_matrix(q: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Unit quaternion (w, x, y, z), Hamilton convention, to a rotation matrix."""
     for i in prange(q.shape[0]):
@@ -103,7 +103,7 @@ def quat_to_matrix(q: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover 
         out[i, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def quat_to_rvec(q: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Unit quaternion to rotation vector with angle in [0, pi]: t = 2 atan2(|v|, w)."""
     for i in prange(q.shape[0]):

@@ -6,7 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def rigid_apply(R: np.ndarray, t: np.ndarray, pts: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
     """out[i] = R @ pts[i] + t for rows of (N, 3)."""
     for i in prange(pts.shape[0]):
@@ -18,7 +18,7 @@ def rigid_apply(R: np.ndarray, t: np.ndarray, pts: np.ndarray, out: np.ndarray) 
         out[i, 2] = R[2, 0] * x + R[2, 1] * y + R[2, 2] * z + t[2]
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def pinhole_project(pts: np.ndarray, fx: float, fy: float, cx: float, cy: float, skew: float,
                     out: np.ndarray) -> None:  # pragma: no cover
     """u = fx X/Z + skew Y/Z + cx, v = fy Y/Z + cy; NaN for Z <= 0."""
@@ -34,7 +34,7 @@ def pinhole_project(pts: np.ndarray, fx: float, fy: float, cx: float, cy: float,
             out[i, 1] = np.nan
 
 
-@njit(cache=True, nogil=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def pinhole_unproject(px: np.ndarray, fx: float, fy: float, cx: float, cy: float, skew: float,
                       out: np.ndarray) -> None:  # pragma: no cover
     """Unit rays through pixels: y = (v - cy)/fy, x = (u - cx - skew y)/fx, ray = (x, y, 1)/n."""
