@@ -170,3 +170,24 @@ def check_choice(x: Any, choices: Sequence[str], name: str) -> str:
     if not isinstance(x, str) or x not in choices:
         raise ParameterError(f"{name}: expected one of {', '.join(map(repr, choices))}, got {x!r}")
     return x
+
+
+IMAGE_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
+
+
+def as_image(img: Any, name: str, *, max_channels: int = 4) -> np.ndarray:
+    """Return ``img`` as an (H, W) or (H, W, C) array of a supported dtype (uint8, uint16,
+    float32, float64), C in 1..max_channels, H and W >= 1. The dtype is kept."""
+    if not isinstance(img, np.ndarray):
+        raise ShapeError(f"{name}: expected a NumPy array (H, W) or (H, W, C), got {_kind_of(img)}")
+    if img.dtype.type not in IMAGE_DTYPES:
+        raise ShapeError(
+            f"{name}: expected dtype uint8, uint16, float32 or float64, got {img.dtype}"
+        )
+    if img.ndim not in (2, 3) or (img.ndim == 3 and not 1 <= img.shape[2] <= max_channels):
+        raise ShapeError(
+            f"{name}: expected shape (H, W) or (H, W, C) with C in 1..{max_channels}, got {img.shape}"
+        )
+    if img.shape[0] < 1 or img.shape[1] < 1:
+        raise ShapeError(f"{name}: expected a non-empty image, got shape {img.shape}")
+    return img

@@ -1,0 +1,64 @@
+"""Interpolation weights and border handling shared by remap, warps and resize.
+
+Methods (internal codes): 0 nearest, 1 bilinear, 2 bicubic (Keys, parameter a), 3 Lanczos-3.
+Borders: 0 constant, 1 replicate, 2 reflect (half-sample symmetric: ...c b a | a b c...).
+Pixel centres are at integer coordinates.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def keys(t: float, a: float) -> float:  # pragma: no cover - numba
+    """Keys' cubic convolution kernel (R. Keys, IEEE TASSP 29(6), 1981, doi:10.1109/TASSP.1981.1163711)."""
+    t = abs(t)
+    if t <= 1.0:
+        return ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0
+    if t < 2.0:
+        return ((a * t - 5.0 * a) * t + 8.0 * a) * t - 4.0 * a
+    return 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lanczos3(t: float) -> float:  # pragma: no cover
+    """sinc(t) sinc(t / 3) on |t| < 3 (C. E. Duchon, J. Appl. Meteor. 18, 1979)."""
+    t = abs(t)
+    if t < 1e-12:
+        return 1.0
+    if t >= 3.0:
+        return 0.0
+    pt = math.pi * t
+    return 3.0 * math.sin(pt) * math.sin(pt / 3.0) / (pt * pt)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def border_index(i: int, n: int, border: int) -> int:  # pragma: no cover
+    """Index into [0, n) for a tap at i; -1 means 'use the fill value' (constant border)."""
+    if 0 <= i < n:
+        return i
+    if border == 0:
+        return -1
+    if border == 1:
+        return 0 if i < 0 else n - 1
+    # half-sample symmetric reflection, period 2n
+    period = 2 * n
+    i = i % period
+    if i < 0:
+        i += period
+    return i if i < n else period - 1 - i
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def store(v: float, is_int: bool, lo: float, hi: float) -> float:  # pragma: no cover
+    """Round to nearest (halves away from zero) and saturate for integer outputs."""
+    if is_int:
+        v = math.floor(v + 0.5) if v >= 0 else -math.floor(-v + 0.5)
+        if v < lo:
+            return lo
+        if v > hi:
+            return hi
+    return v
