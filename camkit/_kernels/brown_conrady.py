@@ -38,6 +38,17 @@ def distort(x: float, y: float, c: np.ndarray):  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def distort_only(x: float, y: float, c: np.ndarray):  # pragma: no cover - numba
+    """Ideal normalised (x, y) -> distorted (xd, yd), without derivatives (the fast path)."""
+    r2 = x * x + y * y
+    rad = (1.0 + r2 * (c[0] + r2 * (c[1] + r2 * c[2]))) / (1.0 + r2 * (c[3] + r2 * (c[4] + r2 * c[5])))
+    xy = 2.0 * x * y
+    xd = x * rad + c[6] * xy + c[7] * (r2 + 2.0 * x * x) + r2 * (c[8] + c[9] * r2)
+    yd = y * rad + c[6] * (r2 + 2.0 * y * y) + c[7] * xy + r2 * (c[10] + c[11] * r2)
+    return xd, yd
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def valid_radius(c: np.ndarray, r_search: float, n_dirs: int, n_steps: int) -> float:  # pragma: no cover
     """Largest r such that, on every sampled direction, the distortion map is one-to-one on
     the disk of ideal radius r: the rational denominator stays positive, the Jacobian
@@ -75,7 +86,7 @@ def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
             x = pts[i, 0] / z
             y = pts[i, 1] / z
             if x * x + y * y <= r2_valid:
-                xd, yd, _a, _b, _c, _d, _n, _e = distort(x, y, c)
+                xd, yd = distort_only(x, y, c)
                 out[i, 0] = fx * xd + skew * yd + cx
                 out[i, 1] = fy * yd + cy
                 continue

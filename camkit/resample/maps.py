@@ -1,0 +1,203 @@
+"""Maps between camera models: reprojection, undistortion, rectification, and the choice of
+the new pinhole camera.
+
+A map answers, for every pixel of the image to make (the destination), where to sample the
+image one has (the source): ``map[r, c] = (x_src, y_src)``, ready for
+:func:`camkit.resample.remap`. Destination pixels that see no source pixel's ray (outside the
+source lens's valid region, behind a pinhole) hold NaN, which remap turns into the fill value.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from camkit._kernels import maps as _km
+from camkit._validate import as_finite_float, as_positive_int, as_rotation_matrix
+from camkit.errors import ParameterError
+from camkit.lens.base import CameraModel
+from camkit.lens.brown_conrady import BrownConrady
+from camkit.lens.kannala_brandt import KannalaBrandt
+from camkit.lens.pinhole import Pinhole
+
+__all__ = ["optimal_pinhole", "reproject_map", "undistort_map"]
+
+_CHUNK_PIXELS = 1 << 18  # rows per chunk in the generic path: ~256 k pixels, a few MB
+
+
+def _check_model(m: Any, name: str) -> CameraModel:
+    if not isinstance(m, CameraModel):
+        raise ParameterError(f"{name}: expected a camkit camera model, got {type(m).__name__}")
+    return m
+
+
+def _check_dtype(dtype: Any) -> np.dtype:
+    dt = np.dtype(dtype)
+    if dt not in (np.dtype(np.float32), np.dtype(np.float64)):
+        raise ParameterError(f"dtype: expected float32 or float64, got {dt}")
+    return dt
+
+
+def reproject_map(src_model: CameraModel, dst_model: CameraModel, rotation: Any = None, *,
+                  dtype: Any = np.float32) -> np.ndarray:
+    """The map that resamples an image of ``src_model`` into the lattice of ``dst_model``.
+
+    For each destination pixel ``p``: ``map[p] = src.project(rotation @ dst.unproject(p))``.
+
+    Parameters
+    ----------
+    src_model, dst_model : CameraModel
+        Any registry models; the map has the destination's size.
+    rotation : array_like, (3, 3), optional
+        ``src_from_dst``: a ray ``d`` in the destination camera's frame is ``rotation @ d`` in
+        the source camera's frame (rectification). OpenCV's ``R`` argument of
+        ``initUndistortRectifyMap`` is the other direction, ``dst_from_src``: pass ``R.T``.
+    dtype : float32 (default) or float64
+
+    Returns
+    -------
+    ndarray, (dst.height, dst.width, 2)
+        ``[..., 0] = x``, ``[..., 1] = y`` in the source image; NaN where no source ray exists.
+    """
+    src = _check_model(src_model, "src_model")
+    dst = _check_model(dst_model, "dst_model")
+    dt = _check_dtype(dtype)
+    R = np.eye(3) if rotation is None else as_rotation_matrix(rotation, "rotation")
+    out = np.empty((dst.height, dst.width, 2), dtype=dt)
+    if type(dst) is Pinhole:
+        M = np.ascontiguousarray(R @ np.linalg.inv(dst.K))
+        intr = np.array([src.fx, src.fy, src.cx, src.cy, src.skew])
+        if type(src) is Pinhole:
+            _km.pinhole_to_pinhole(M, intr, out)
+            return out
+        if type(src) is BrownConrady:
+            _km.pinhole_to_brown_conrady(M, intr, src._coeffs(), src._r2_valid(), out)
+            return out
+        if type(src) is KannalaBrandt:
+            _km.pinhole_to_kannala_brandt(M, intr, src._coeffs(), src.valid_theta, out)
+            return out
+    # Generic path: any pair of models, a band of rows at a time (bounded memory).
+    rows = max(1, _CHUNK_PIXELS // dst.width)
+    u = np.arange(dst.width, dtype=np.float64)
+    for r0 in range(0, dst.height, rows):
+        v = np.arange(r0, min(r0 + rows, dst.height), dtype=np.float64)
+        grid = np.empty((len(v), dst.width, 2))
+        grid[..., 0] = u[None, :]
+        grid[..., 1] = v[:, None]
+        rays = dst._unproject_rows(grid.reshape(-1, 2))
+        px = src._project_rows(np.ascontiguousarray(rays @ R.T))
+        out[r0:r0 + len(v)] = px.reshape(len(v), dst.width, 2)
+    return out
+
+
+def undistort_map(model: CameraModel, new_model: CameraModel | None = None, *,
+                  dtype: Any = np.float32) -> np.ndarray:
+    """The map that removes a lens's distortion: :func:`reproject_map` from ``model`` to
+    ``new_model`` (by default a :class:`Pinhole` with the same ``fx, fy, cx, cy, skew`` and size,
+    as OpenCV's ``undistort`` does; :func:`optimal_pinhole` chooses a better one).
+
+    Examples
+    --------
+    >>> from camkit.lens import BrownConrady
+    >>> cam = BrownConrady(fx=500.0, fy=500.0, cx=319.5, cy=239.5, width=640, height=480, k1=-0.2)
+    >>> m = undistort_map(cam)
+    >>> m.shape, m.dtype
+    ((480, 640, 2), dtype('float32'))
+    >>> m[240, 320].round(2)  # the centre does not move
+    array([320.  , 240.  ], dtype=float32)
+    """
+    model = _check_model(model, "model")
+    if new_model is None:
+        new_model = Pinhole(fx=model.fx, fy=model.fy, cx=model.cx, cy=model.cy, skew=model.skew,
+                            width=model.width, height=model.height)
+    return reproject_map(model, new_model, dtype=dtype)
+
+
+def _border_pixels(w: int, h: int) -> dict[str, np.ndarray]:
+    """The outer edges of the border pixels, sampled every pixel (and at the corners)."""
+    xs = np.arange(-0.5, w - 0.5 + 1e-9, 1.0)
+    ys = np.arange(-0.5, h - 0.5 + 1e-9, 1.0)
+    return {
+        "left": np.stack([np.full_like(ys, -0.5), ys], axis=-1),
+        "right": np.stack([np.full_like(ys, w - 0.5), ys], axis=-1),
+        "top": np.stack([xs, np.full_like(xs, -0.5)], axis=-1),
+        "bottom": np.stack([xs, np.full_like(xs, h - 0.5)], axis=-1),
+    }
+
+
+def optimal_pinhole(model: CameraModel, alpha: float = 0.0, *, width: int | None = None,
+                    height: int | None = None) -> Pinhole:
+    """A pinhole camera for undistorting ``model``'s images, from ``alpha = 0`` (every output
+    pixel sees the scene: no empty borders) to ``alpha = 1`` (every source pixel is kept).
+
+    The source image's border, sampled at every pixel of its outer edge, is unprojected to
+    ideal normalised coordinates. ``alpha = 0`` fits the output into the largest rectangle
+    bounded by the four edge curves (the rightmost point of the left edge, the lowest of the
+    top edge, ...); ``alpha = 1`` fits the bounding box of the whole border into it; values
+    between interpolate the field of view (``1 / fx``) and the centre linearly. The new camera
+    keeps ``fy / fx`` and zero skew, and centres the rectangle in the output.
+
+    Every quantity is a maximum or minimum over dense samples, so the result moves smoothly
+    with the input: a 0.1 px change of the principal point moves the new one by about as much
+    (OpenCV's ``getOptimalNewCameraMatrix`` samples a coarse grid and can jump by tens of
+    pixels, opencv/opencv#24923).
+
+    Parameters
+    ----------
+    model : CameraModel
+    alpha : float in [0, 1]
+    width, height : int, optional
+        Output size; the model's by default.
+
+    Returns
+    -------
+    Pinhole
+
+    Raises
+    ------
+    ParameterError
+        If the model does not map its image border to rays in front of the camera (a fisheye
+        beyond 90 degrees cannot be undistorted onto one plane with ``alpha = 1``).
+    """
+    model = _check_model(model, "model")
+    a = as_finite_float(alpha, "alpha")
+    if not 0.0 <= a <= 1.0:
+        raise ParameterError(f"alpha: expected a number in [0, 1], got {a}")
+    w = model.width if width is None else as_positive_int(width, "width")
+    h = model.height if height is None else as_positive_int(height, "height")
+    edges = {}
+    for name, px in _border_pixels(model.width, model.height).items():
+        rays = model.unproject(px)
+        ok = np.isfinite(rays).all(axis=-1) & (rays[:, 2] > 1e-6)
+        if not ok.all():
+            raise ParameterError(
+                f"model: {int((~ok).sum())} pixels of the image's {name} edge have no ray in front of "
+                "the camera (outside the lens's valid region, or beyond 90 degrees); no pinhole "
+                "camera can show them"
+            )
+        edges[name] = rays[:, :2] / rays[:, 2:]
+    inner = np.array([edges["left"][:, 0].max(), edges["top"][:, 1].max(),
+                      edges["right"][:, 0].min(), edges["bottom"][:, 1].min()])
+    allpts = np.concatenate(list(edges.values()))
+    outer = np.array([allpts[:, 0].min(), allpts[:, 1].min(), allpts[:, 0].max(), allpts[:, 1].max()])
+    if inner[2] <= inner[0] or inner[3] <= inner[1]:
+        raise ParameterError("model: the undistorted image has no inner rectangle (the edges cross)")
+    ratio = model.fy / model.fx
+
+    def extent(rect: np.ndarray, cover: bool) -> float:
+        # The output spans w / fx by h / fy in normalised units (pixel edges at -0.5, w - 0.5).
+        # 'cover': the output lies inside rect; otherwise rect lies inside the output.
+        sx = (rect[2] - rect[0]) / w
+        sy = (rect[3] - rect[1]) * ratio / h
+        return min(sx, sy) if cover else max(sx, sy)
+
+    # 1 / fx at alpha = 0 (inside the inner rectangle) and alpha = 1 (holding the outer one),
+    # interpolated linearly, as is the centre: continuous in alpha and in the model.
+    inv_f = (1 - a) * extent(inner, cover=True) + a * extent(outer, cover=False)
+    centre = (1 - a) * (inner[:2] + inner[2:]) / 2 + a * (outer[:2] + outer[2:]) / 2
+    fx = 1.0 / inv_f
+    fy = fx * ratio
+    cx = (w - 1) / 2.0 - fx * centre[0]
+    cy = (h - 1) / 2.0 - fy * centre[1]
+    return Pinhole(fx=fx, fy=fy, cx=cx, cy=cy, skew=0.0, width=w, height=h)
