@@ -2,6 +2,7 @@
 
 from camkit.lens.base import MODELS, CameraModel, FieldOfView, get_model, model_from_params, register_model
 from camkit.lens.brown_conrady import BrownConrady
+from camkit.lens.chromatic import LateralChromaticAberration
 from camkit.lens.kannala_brandt import KannalaBrandt
 from camkit.lens.opencv import from_opencv, from_opencv_fisheye, to_opencv
 from camkit.lens.pinhole import Pinhole
@@ -12,6 +13,7 @@ __all__ = [
     "CameraModel",
     "FieldOfView",
     "KannalaBrandt",
+    "LateralChromaticAberration",
     "Pinhole",
     "from_opencv",
     "from_opencv_fisheye",

@@ -11,7 +11,7 @@ from camkit._validate import as_finite_float, as_image, as_real_array, check_cho
 from camkit.errors import ParameterError, ShapeError
 from camkit.resample.kernels import DEFAULT_BICUBIC_A, interpolation_code
 
-__all__ = ["BORDERS", "remap"]
+__all__ = ["BORDERS", "remap", "undistort_image"]
 
 BORDERS = ("constant", "replicate", "reflect")
 
@@ -101,3 +101,20 @@ def remap(image: np.ndarray, map_xy: Any, *, interpolation: str = "bilinear", bo
         _kr.REMAP[method](img3, np.ascontiguousarray(map_xy), a, border_code, fill, is_int, lo, hi,
                           accumulator_zero(img.dtype), out)
     return out if img.ndim == 3 else out[:, :, 0]
+
+
+def undistort_image(image: np.ndarray, model: Any, new_model: Any = None, *,
+                    interpolation: str = "bilinear", border: str = "constant", fill_value: Any = 0,
+                    bicubic_a: float = DEFAULT_BICUBIC_A) -> np.ndarray:
+    """Remove a lens's distortion: :func:`remap` through
+    :func:`camkit.resample.maps.undistort_map` ``(model, new_model)``.
+
+    ``new_model`` defaults to a pinhole with the model's intrinsics and size; choose one with
+    :func:`camkit.resample.maps.optimal_pinhole` to keep all pixels (``alpha=1``) or only
+    valid ones (``alpha=0``). Output pixels that no source ray reaches get ``fill_value``.
+    """
+    from camkit.resample.maps import undistort_map
+
+    img = as_image(image, "image")
+    return remap(img, undistort_map(model, new_model), interpolation=interpolation, border=border,
+                 fill_value=fill_value, bicubic_a=bicubic_a)
