@@ -34,17 +34,19 @@ def test_fisheye_map_agrees_with_opencv():
     assert np.abs(ours[..., 0] - mx).max() < 1e-4 and np.abs(ours[..., 1] - my).max() < 1e-4
 
 
-@pytest.mark.parametrize("dst", [NEW, BC.replace(k1=-0.1, k2=0.0, k3=0.0)])
-def test_map_matches_project_unproject(dst):
-    # Fused (pinhole destination) and generic (any destination) paths: the map is exactly
-    # src.project(R @ dst.unproject(p)).
-    R = matrix_from_rvec([0.02, 0.01, -0.01])
-    m = reproject_map(BC, dst, R, dtype=np.float64)
+@pytest.mark.parametrize("src", [BC, BC.replace(k4=0.05, k5=0.01)], ids=["plain", "rational"])
+@pytest.mark.parametrize("rotated", [False, True])
+@pytest.mark.parametrize("dst", [NEW, BC.replace(k1=-0.1, k2=0.0, k3=0.0)], ids=["pinhole", "generic"])
+def test_map_matches_project_unproject(src, rotated, dst):
+    # Every kernel path (constant-depth rows or not, rational or not, fused or generic):
+    # the map is exactly src.project(R @ dst.unproject(p)).
+    R = matrix_from_rvec([0.02, 0.01, -0.01]) if rotated else np.eye(3)
+    m = reproject_map(src, dst, R, dtype=np.float64)
     rng = np.random.default_rng(0)
     rows = rng.integers(0, 480, 200)
     cols = rng.integers(0, 640, 200)
     px = np.stack([cols, rows], axis=-1).astype(np.float64)
-    expect = BC.project(dst.unproject(px) @ R.T)
+    expect = src.project(dst.unproject(px) @ R.T)
     assert np.allclose(m[rows, cols], expect, atol=1e-9, equal_nan=True)
 
 
