@@ -86,7 +86,12 @@ def from_perspective(P, r, c):  # pragma: no cover
     return (P[0, 0] * c + P[0, 1] * r + P[0, 2]) * iw, (P[1, 0] * c + P[1, 1] * r + P[1, 2]) * iw
 
 
-def _make(N: int, taps, coords):
+def _make(N: int, KIND: int):
+    """The kernel for N taps (1, 2, 4, 6) and a source of coordinates (KIND: 0 map, 1 affine,
+    2 perspective). The closure captures plain ints only: numba prunes the branches on them
+    before typing, and its on-disk cache recognises the kernels in a new process (closures
+    over functions get a fresh cache key in every process, so they recompile)."""
+
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
     def remap_kernel(img, mp, a, border, fill, is_int, lo, hi, zero, out):  # pragma: no cover
         H, W, C = img.shape
@@ -95,13 +100,28 @@ def _make(N: int, taps, coords):
         hi_t = zero + hi
         for r in prange(Ho):
             for c in range(Wo):
-                x, y = coords(mp, r, c)
+                if KIND == 0:
+                    x, y = from_map(mp, r, c)
+                elif KIND == 1:
+                    x, y = from_affine(mp, r, c)
+                else:
+                    x, y = from_perspective(mp, r, c)
                 if not (abs(x) < 1e9 and abs(y) < 1e9):  # NaN, inf or absurdly far: fill
                     for ch in range(C):
                         out[r, c, ch] = store(fill[ch], is_int, lo, hi)
                     continue
-                x0, wx = taps(x, a)
-                y0, wy = taps(y, a)
+                if N == 1:
+                    x0, wx = taps1(x, a)
+                    y0, wy = taps1(y, a)
+                elif N == 2:
+                    x0, wx = taps2(x, a)
+                    y0, wy = taps2(y, a)
+                elif N == 4:
+                    x0, wx = taps4(x, a)
+                    y0, wy = taps4(y, a)
+                else:
+                    x0, wx = taps6(x, a)
+                    y0, wy = taps6(y, a)
                 if border == 0 and (x0 + N <= 0 or y0 + N <= 0 or x0 >= W or y0 >= H):
                     for ch in range(C):  # every tap outside a constant border
                         out[r, c, ch] = store(fill[ch], is_int, lo, hi)
@@ -174,7 +194,7 @@ def border_bilinear(img, x, y, border, fill, ch):  # pragma: no cover
     return acc
 
 
-def _make_bilinear_u8c3(coords):
+def _make_bilinear_u8c3(KIND: int):
     """uint8 RGB, bilinear: the common case, in two phases per row. Phase 1 turns
     coordinates into flat offsets and 11-bit fixed-point weights (vectorisable); phase 2
     gathers and blends in int32, rounding to nearest ((sum + 2^21) >> 22). The fixed-point
@@ -192,7 +212,12 @@ def _make_bilinear_u8c3(coords):
             wy = np.empty(Wo, np.int32)
             ok = np.empty(Wo, np.bool_)
             for c in range(Wo):
-                x, y = coords(mp, r, c)
+                if KIND == 0:
+                    x, y = from_map(mp, r, c)
+                elif KIND == 1:
+                    x, y = from_affine(mp, r, c)
+                else:
+                    x, y = from_perspective(mp, r, c)
                 fx = np.floor(x)
                 fy = np.floor(y)
                 inside = (fx >= 0) & (fy >= 0) & (fx < W - 1) & (fy < H - 1)  # NaN: False
@@ -218,7 +243,12 @@ def _make_bilinear_u8c3(coords):
                                        + w10 * np.int32(flat[q + ch]) + w11 * np.int32(flat[q + 3 + ch])
                                        + (1 << 21)) >> 22
                 else:
-                    x, y = coords(mp, r, c)
+                    if KIND == 0:
+                        x, y = from_map(mp, r, c)
+                    elif KIND == 1:
+                        x, y = from_affine(mp, r, c)
+                    else:
+                        x, y = from_perspective(mp, r, c)
                     # NaN, far away, or (constant border) every tap outside: the fill value.
                     far = not (abs(x) < 1e9 and abs(y) < 1e9) or (
                         border == 0 and (x <= -1.0 or y <= -1.0 or x >= W or y >= H))
@@ -232,17 +262,14 @@ def _make_bilinear_u8c3(coords):
     return kernel
 
 
-_TAPS = ((1, taps1), (2, taps2), (4, taps4), (6, taps6))
+_N_TAPS = (1, 2, 4, 6)
 
 #: Kernels by interpolation code (0 nearest, 1 bilinear, 2 bicubic, 3 Lanczos-3), reading
 #: coordinates from a map (H_out, W_out, 2), an affine 2x3 or a perspective 3x3 matrix.
-REMAP = tuple(_make(n, t, from_map) for n, t in _TAPS)
-WARP_AFFINE = tuple(_make(n, t, from_affine) for n, t in _TAPS)
-WARP_PERSPECTIVE = tuple(_make(n, t, from_perspective) for n, t in _TAPS)
+REMAP = tuple(_make(n, 0) for n in _N_TAPS)
+WARP_AFFINE = tuple(_make(n, 1) for n in _N_TAPS)
+WARP_PERSPECTIVE = tuple(_make(n, 2) for n in _N_TAPS)
 
 #: The uint8 RGB bilinear specialisations, by source of coordinates.
-BILINEAR_U8C3 = {
-    "map": _make_bilinear_u8c3(from_map),
-    "affine": _make_bilinear_u8c3(from_affine),
-    "perspective": _make_bilinear_u8c3(from_perspective),
-}
+BILINEAR_U8C3 = {"map": _make_bilinear_u8c3(0), "affine": _make_bilinear_u8c3(1),
+                 "perspective": _make_bilinear_u8c3(2)}

@@ -33,8 +33,11 @@ def resize_weights(n_in: int, n_out: int, interpolation: str, *, antialias: bool
         return idx, np.ones((n_out, 1))
     stretch = scale if (antialias and scale > 1.0) or method == "area" else 1.0
     support = (0.5 if method == "area" else kernel_support(method)) * stretch
-    first = np.floor(x - support).astype(np.int64) + 1
-    K = int(np.ceil(2 * support)) + 1
+    # Input pixel i contributes where the kernel is non-zero at its centre, |i - x| < support;
+    # for "area" where its extent [i - 0.5, i + 0.5] overlaps [x - support, x + support].
+    reach = support + (0.5 if method == "area" else 0.0)
+    first = np.floor(x - reach).astype(np.int64) + 1
+    K = int(np.ceil(2 * reach)) + 1
     idx = first[:, None] + np.arange(K)[None, :]
     t = idx - x[:, None]
     if method == "area":

@@ -1,0 +1,149 @@
+"""remap against the float64 NumPy reference; borders, dtypes, channels, bad input."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camkit.errors import CamkitError, ParameterError, ShapeError
+from camkit.resample import INTERPOLATIONS, kernel, remap
+
+from .reference import remap_reference, to_dtype
+
+RNG = np.random.default_rng(2024)
+H, W = 23, 31
+
+
+def _image(dtype, channels):
+    shape = (H, W) if channels == 0 else (H, W, channels)
+    if np.dtype(dtype).kind == "u":
+        return RNG.integers(0, np.iinfo(dtype).max, size=shape, endpoint=True).astype(dtype)
+    return RNG.uniform(0, 1, size=shape).astype(dtype)
+
+
+def _map(h=17, w=19, spread=4.0, dtype=np.float64):
+    # Positions inside, near and beyond the borders, at arbitrary fractions.
+    x = RNG.uniform(-spread, W - 1 + spread, size=(h, w))
+    y = RNG.uniform(-spread, H - 1 + spread, size=(h, w))
+    return np.stack([x, y], axis=-1).astype(dtype)
+
+
+@pytest.mark.parametrize("method", INTERPOLATIONS)
+@pytest.mark.parametrize("border", ["constant", "replicate", "reflect"])
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32, np.float64])
+@pytest.mark.parametrize("channels", [0, 1, 2, 3, 4])
+def test_agrees_with_reference(method, border, dtype, channels):
+    img = _image(dtype, channels)
+    mp = _map()
+    fill = 0.25 if np.dtype(dtype).kind == "f" else 7
+    out = remap(img, mp, interpolation=method, border=border, fill_value=fill)
+    assert out.dtype == img.dtype and out.shape == mp.shape[:2] + img.shape[2:]
+    ref = to_dtype(remap_reference(img, mp, method, border, fill), dtype)
+    diff = np.abs(out.astype(np.float64) - ref)
+    if np.dtype(dtype).kind == "u":
+        # Float32 accumulation (and 11-bit fixed-point weights for uint8 RGB bilinear) can move
+        # a value across a rounding boundary: at most 1 level.
+        assert diff.max() <= 1
+    else:
+        # float32 arithmetic on values of size 1: 1e-5 absolute.
+        assert diff.max() <= 1e-5
+
+
+@pytest.mark.parametrize("method", INTERPOLATIONS)
+def test_integer_positions_reproduce_pixels(method):
+    img = _image(np.float64, 3)
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    out = remap(img, np.stack([xx, yy], -1), interpolation=method)
+    assert np.allclose(out, img, atol=1e-12)
+
+
+def test_float32_map_and_uint8_rgb_fast_path_match_opencv():
+    img = RNG.integers(0, 256, (120, 160, 3), dtype=np.uint8)
+    yy, xx = np.mgrid[0:100, 0:140].astype(np.float32)
+    mp = np.stack([xx * 1.07 + 3.3 + np.sin(yy / 9), yy * 0.93 + 2.1], -1).astype(np.float32)
+    ours = remap(img, mp)
+    ref = cv2.remap(img, np.ascontiguousarray(mp[..., 0]), np.ascontiguousarray(mp[..., 1]),
+                    cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
+    assert np.abs(ours.astype(int) - ref).max() <= 1  # both use fixed-point weights
+
+
+def test_borders_explicitly():
+    img = np.array([[1.0, 2.0, 3.0]])
+    at = lambda x, border: remap(img, np.array([[[x, 0.0]]]), interpolation="nearest", border=border,  # noqa: E731
+                                 fill_value=-9)[0, 0]
+    assert at(-1, "constant") == -9 and at(3, "constant") == -9
+    assert at(-1, "replicate") == 1 and at(5, "replicate") == 3
+    assert at(-1, "reflect") == 1 and at(-2, "reflect") == 2 and at(3, "reflect") == 3 and at(4, "reflect") == 2
+    # Constant border blends into the edge pixel (as OpenCV's BORDER_CONSTANT).
+    half = remap(img, np.array([[[-0.5, 0.0]]]), border="constant", fill_value=0)[0, 0]
+    assert half == pytest.approx(0.5)
+
+
+def test_nan_in_map_gives_fill_value():
+    img = _image(np.uint8, 3)
+    mp = _map(dtype=np.float32)
+    mp[2, 3] = np.nan
+    mp[4, 5, 0] = np.inf
+    for method in INTERPOLATIONS:
+        out = remap(img, mp, interpolation=method, fill_value=(1, 2, 3))
+        assert out[2, 3].tolist() == [1, 2, 3] and out[4, 5].tolist() == [1, 2, 3]
+
+
+def test_saturation_not_wraparound():
+    step = np.zeros((4, 8), np.uint8)
+    step[:, 4:] = 255
+    xs = np.linspace(2.5, 5.5, 13)
+    mp = np.stack([xs, np.ones_like(xs)], -1)[None]
+    for a in (-0.5, -0.75):
+        out = remap(step, mp, interpolation="bicubic", bicubic_a=a)
+        ref = remap_reference(step, mp, "bicubic", a=a)
+        assert ref.min() < 0 and ref.max() > 255  # the kernel overshoots...
+        assert out.min() == 0 and out.max() == 255  # ...and the output saturates
+
+
+def test_empty_output_and_views():
+    img = _image(np.float32, 3)
+    assert remap(img, np.zeros((0, 5, 2))).shape == (0, 5, 3)
+    # Non-contiguous inputs are accepted.
+    view = _image(np.float64, 3)[:, ::2]
+    mp = _map(spread=0.0)
+    mp[..., 0] = np.clip(mp[..., 0], 0, view.shape[1] - 1)
+    assert np.allclose(remap(view, mp), remap_reference(view, mp), atol=1e-12)
+
+
+def test_kernels_sum_and_shape():
+    t = np.linspace(-4, 4, 801)
+    for name in INTERPOLATIONS:
+        k = kernel(name, t)
+        assert k[400] == 1.0
+    # Keys with a = -0.5 interpolates quadratics exactly (third-order accurate).
+    xs = np.arange(10.0)
+    vals = 0.3 * xs**2 - xs + 2
+    img = np.tile(vals, (3, 1))
+    x = np.array([[[4.37, 1.0]]])
+    assert remap(img, x, interpolation="bicubic")[0, 0] == pytest.approx(0.3 * 4.37**2 - 4.37 + 2, abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    ("call", "exc", "needle"),
+    [
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4))), ShapeError, "map_xy: expected shape (H_out, W_out, 2)"),
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4, 2), np.int32)), ShapeError, "map_xy: expected a float32 or float64"),
+        (lambda: remap(np.zeros((4, 4), np.int32), np.zeros((4, 4, 2))), ShapeError, "image: expected dtype uint8"),
+        (lambda: remap(np.zeros((4, 4), bool), np.zeros((4, 4, 2))), ShapeError, "image: expected dtype"),
+        (lambda: remap(np.zeros((4, 4, 5)), np.zeros((4, 4, 2))), ShapeError, "image: expected shape (H, W) or (H, W, C)"),
+        (lambda: remap(np.zeros((0, 4)), np.zeros((4, 4, 2))), ShapeError, "image: expected a non-empty image"),
+        (lambda: remap([[1, 2]], np.zeros((4, 4, 2))), ShapeError, "image: expected a NumPy array"),
+        (lambda: remap(np.zeros((4, 4, 3)), np.zeros((4, 4, 2)), fill_value=(1, 2)), ShapeError, "fill_value: expected a number or 3"),
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4, 2)), fill_value=np.nan), ParameterError, "fill_value: expected finite"),
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4, 2)), interpolation="cubic"), ParameterError, "interpolation: expected one of"),
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4, 2)), border="wrap"), ParameterError, "border: expected one of"),
+        (lambda: remap(np.zeros((4, 4)), np.zeros((4, 4, 2)), bicubic_a=np.inf), ParameterError, "bicubic_a: expected a finite"),
+    ],
+)
+def test_bad_input(call, exc, needle):
+    with pytest.raises(exc) as info:
+        call()
+    assert isinstance(info.value, CamkitError)
+    assert needle in str(info.value)
