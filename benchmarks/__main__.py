@@ -16,7 +16,7 @@ from pathlib import Path
 
 from benchmarks.harness import markdown_table, run_case
 
-MODULES = ["bench_geometry", "bench_lens"]
+MODULES = ["bench_geometry", "bench_lens", "bench_resample"]
 RESULTS = Path(__file__).with_name("RESULTS.md")
 
 

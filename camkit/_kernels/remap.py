@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from camkit._kernels.interp import border_index, keys, lanczos3, store
+from camkit._kernels.interp import border_index, lanczos3, store
 
 # Each tapsN(x, a) returns the first tap's index and the N weights (summing to 1) for a
 # coordinate x; np.floor keeps x's float type, so float32 maps are computed in float32.
@@ -33,9 +33,13 @@ def taps2(x, a):  # pragma: no cover
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def taps4(x, a):  # pragma: no cover
+    """Keys' kernel at t+1, t, 1-t, 2-t for t in [0, 1), expanded into branch-free
+    polynomials: a t (1-t)^2, (a+2) t^3 - (a+3) t^2 + 1, the same at 1-t, a t^2 (1-t)."""
     f = np.floor(x)
     t = np.float64(x - f)
-    return int(f) - 1, (keys(t + 1.0, a), keys(t, a), keys(1.0 - t, a), keys(2.0 - t, a))
+    u = 1.0 - t
+    return int(f) - 1, (a * t * u * u, ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0,
+                        ((a + 2.0) * u - (a + 3.0)) * u * u + 1.0, a * t * t * u)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
