@@ -1,0 +1,240 @@
+"""Demosaicing kernels on float planes. ``code`` is the pattern's 2x2 colour indices
+(0 red, 1 green, 2 blue) in the order (0,0), (0,1), (1,0), (1,1). Borders mirror without
+repeating the edge pixel (d c b | a b c d), which keeps the Bayer phase."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def m(i: int, n: int) -> int:  # pragma: no cover - numba
+    """Mirror index into [0, n) (reflect-101), for offsets up to n - 1 beyond each edge."""
+    if i < 0:
+        i = -i
+    if i >= n:
+        i = 2 * n - 2 - i
+    return i
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def bilinear(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """Each missing colour is the mean of its nearest samples (2 or 4 of them)."""
+    H, W = cfa.shape
+    for y in prange(H):
+        for x in range(W):
+            c = code[(y & 1) * 2 + (x & 1)]
+            v = cfa[y, x]
+            up = cfa[m(y - 1, H), x]
+            dn = cfa[m(y + 1, H), x]
+            lf = cfa[y, m(x - 1, W)]
+            rt = cfa[y, m(x + 1, W)]
+            cross = 0.25 * (up + dn + lf + rt)
+            diag = 0.25 * (cfa[m(y - 1, H), m(x - 1, W)] + cfa[m(y - 1, H), m(x + 1, W)]
+                           + cfa[m(y + 1, H), m(x - 1, W)] + cfa[m(y + 1, H), m(x + 1, W)])
+            if c == 1:
+                # green site: the colour of the row's other sites is left/right, the other up/down
+                row_colour = code[(y & 1) * 2 + ((x + 1) & 1)]
+                h = 0.5 * (lf + rt)
+                vv = 0.5 * (up + dn)
+                out[y, x, 1] = v
+                out[y, x, row_colour] = h
+                out[y, x, 2 - row_colour] = vv
+            else:
+                out[y, x, c] = v
+                out[y, x, 1] = cross
+                out[y, x, 2 - c] = diag
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def malvar(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """Malvar-He-Cutler gradient-corrected bilinear filters (5x5, ICASSP 2004)."""
+    H, W = cfa.shape
+    for y in prange(H):
+        ym2 = m(y - 2, H)
+        ym1 = m(y - 1, H)
+        yp1 = m(y + 1, H)
+        yp2 = m(y + 2, H)
+        for x in range(W):
+            xm2 = m(x - 2, W)
+            xm1 = m(x - 1, W)
+            xp1 = m(x + 1, W)
+            xp2 = m(x + 2, W)
+            c = code[(y & 1) * 2 + (x & 1)]
+            v = cfa[y, x]
+            axial2 = cfa[ym2, x] + cfa[yp2, x] + cfa[y, xm2] + cfa[y, xp2]
+            cross1 = cfa[ym1, x] + cfa[yp1, x] + cfa[y, xm1] + cfa[y, xp1]
+            diag1 = cfa[ym1, xm1] + cfa[ym1, xp1] + cfa[yp1, xm1] + cfa[yp1, xp1]
+            if c == 1:
+                h1 = cfa[y, xm1] + cfa[y, xp1]
+                v1 = cfa[ym1, x] + cfa[yp1, x]
+                h2 = cfa[y, xm2] + cfa[y, xp2]
+                v2 = cfa[ym2, x] + cfa[yp2, x]
+                # colour whose samples are left/right of this green site, and the other one
+                along_row = (5.0 * v + 4.0 * h1 - h2 - diag1 + 0.5 * v2) / 8.0
+                along_col = (5.0 * v + 4.0 * v1 - v2 - diag1 + 0.5 * h2) / 8.0
+                row_colour = code[(y & 1) * 2 + ((x + 1) & 1)]
+                out[y, x, 1] = v
+                out[y, x, row_colour] = along_row
+                out[y, x, 2 - row_colour] = along_col
+            else:
+                out[y, x, c] = v
+                out[y, x, 1] = (4.0 * v + 2.0 * cross1 - axial2) / 8.0
+                out[y, x, 2 - c] = (6.0 * v + 2.0 * diag1 - 1.5 * axial2) / 8.0
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def menon_green(cfa: np.ndarray, code: np.ndarray, gh: np.ndarray, gv: np.ndarray, dh: np.ndarray,
+                dv: np.ndarray) -> None:  # pragma: no cover
+    """Directional green estimates and the chrominance gradients D_H, D_V."""
+    H, W = cfa.shape
+    for y in prange(H):
+        for x in range(W):
+            v = cfa[y, x]
+            if code[(y & 1) * 2 + (x & 1)] == 1:
+                gh[y, x] = v
+                gv[y, x] = v
+            else:
+                gh[y, x] = 0.5 * (cfa[y, m(x - 1, W)] + cfa[y, m(x + 1, W)]) + 0.5 * v - 0.25 * (
+                    cfa[y, m(x - 2, W)] + cfa[y, m(x + 2, W)])
+                gv[y, x] = 0.5 * (cfa[m(y - 1, H), x] + cfa[m(y + 1, H), x]) + 0.5 * v - 0.25 * (
+                    cfa[m(y - 2, H), x] + cfa[m(y + 2, H), x])
+    for y in prange(H):
+        for x in range(W):
+            # chrominance C = colour - green at red/blue sites, 0 at green sites
+            x2 = m(x + 2, W)
+            y2 = m(y + 2, H)
+            ch0 = 0.0 if code[(y & 1) * 2 + (x & 1)] == 1 else cfa[y, x] - gh[y, x]
+            ch2 = 0.0 if code[(y & 1) * 2 + (x2 & 1)] == 1 else cfa[y, x2] - gh[y, x2]
+            cv0 = 0.0 if code[(y & 1) * 2 + (x & 1)] == 1 else cfa[y, x] - gv[y, x]
+            cv2 = 0.0 if code[(y2 & 1) * 2 + (x & 1)] == 1 else cfa[y2, x] - gv[y2, x]
+            dh[y, x] = abs(ch0 - ch2)
+            dv[y, x] = abs(cv0 - cv2)
+
+
+# The classifier window of Menon et al. as (dy, dx, weight): the gradient D_H summed at
+# these offsets (the paper's 5x5 kernel, applied as a convolution with zeros outside); the
+# vertical classifier uses the transposed offsets (dx, dy).
+_WINDOW = np.array([[2, 0, 1.0], [2, -2, 1.0], [1, -1, 1.0], [0, 0, 3.0], [0, -2, 3.0],
+                    [-1, -1, 1.0], [-2, 0, 1.0], [-2, -2, 1.0]])
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def menon_decide(gh: np.ndarray, gv: np.ndarray, dh: np.ndarray, dv: np.ndarray, window: np.ndarray,
+                 g: np.ndarray, horiz: np.ndarray) -> None:  # pragma: no cover
+    """Sum each direction's gradients over the classifier window and keep the direction whose
+    chrominance varies less: green = G_H where sum(D_V) >= sum(D_H), else G_V."""
+    H, W = gh.shape
+    for y in prange(H):
+        for x in range(W):
+            sh = 0.0
+            sv = 0.0
+            for t in range(window.shape[0]):
+                oy = int(window[t, 0])
+                ox = int(window[t, 1])
+                w = window[t, 2]
+                if 0 <= y + oy < H and 0 <= x + ox < W:
+                    sh += w * dh[y + oy, x + ox]
+                if 0 <= y + ox < H and 0 <= x + oy < W:
+                    sv += w * dv[y + ox, x + oy]
+            h = sv >= sh
+            horiz[y, x] = h
+            g[y, x] = gh[y, x] if h else gv[y, x]
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def menon_colour(cfa: np.ndarray, code: np.ndarray, g: np.ndarray, horiz: np.ndarray, r: np.ndarray,
+                 b: np.ndarray) -> None:  # pragma: no cover
+    """Red and blue: at green sites from the colour-minus-green differences of the two
+    neighbours that carry that colour; then at blue (red) sites along the chosen direction."""
+    H, W = cfa.shape
+    for y in prange(H):
+        for x in range(W):
+            c = code[(y & 1) * 2 + (x & 1)]
+            r[y, x] = cfa[y, x] if c == 0 else 0.0
+            b[y, x] = cfa[y, x] if c == 2 else 0.0
+    _colour_at_green(code, g, r, b)
+    _cross_colour(code, horiz, r, b, False)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def _colour_at_green(code: np.ndarray, g: np.ndarray, r: np.ndarray,
+                     b: np.ndarray) -> None:  # pragma: no cover
+    """R and B at green sites: G plus the mean colour-minus-green of the two neighbours that
+    carry the colour (left/right for the row's colour, up/down for the other)."""
+    H, W = g.shape
+    for y in prange(H):
+        for x in range(W):
+            if code[(y & 1) * 2 + (x & 1)] != 1:
+                continue
+            xl = m(x - 1, W)
+            xr = m(x + 1, W)
+            yu = m(y - 1, H)
+            yd = m(y + 1, H)
+            dr_h = 0.5 * ((r[y, xl] - g[y, xl]) + (r[y, xr] - g[y, xr]))
+            dr_v = 0.5 * ((r[yu, x] - g[yu, x]) + (r[yd, x] - g[yd, x]))
+            db_h = 0.5 * ((b[y, xl] - g[y, xl]) + (b[y, xr] - g[y, xr]))
+            db_v = 0.5 * ((b[yu, x] - g[yu, x]) + (b[yd, x] - g[yd, x]))
+            if code[(y & 1) * 2 + ((x + 1) & 1)] == 0:  # red left/right, blue up/down
+                r[y, x] = g[y, x] + dr_h
+                b[y, x] = g[y, x] + db_v
+            else:
+                b[y, x] = g[y, x] + db_h
+                r[y, x] = g[y, x] + dr_v
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def _cross_colour(code: np.ndarray, horiz: np.ndarray, r: np.ndarray, b: np.ndarray,
+                  with_centre: bool) -> None:  # pragma: no cover
+    """Red at blue sites and blue at red sites from the red-minus-blue difference along the
+    chosen direction: the two neighbours' mean (first pass), or with the centre's own current
+    difference as a third tap (refinement)."""
+    H, W = r.shape
+    for y in prange(H):
+        for x in range(W):
+            c = code[(y & 1) * 2 + (x & 1)]
+            if c == 1:
+                continue
+            if horiz[y, x]:
+                a0 = r[y, m(x - 1, W)] - b[y, m(x - 1, W)]
+                a1 = r[y, m(x + 1, W)] - b[y, m(x + 1, W)]
+            else:
+                a0 = r[m(y - 1, H), x] - b[m(y - 1, H), x]
+                a1 = r[m(y + 1, H), x] - b[m(y + 1, H), x]
+            d = (a0 + a1 + (r[y, x] - b[y, x])) / 3.0 if with_centre else 0.5 * (a0 + a1)
+            if c == 2:
+                r[y, x] = b[y, x] + d
+            else:
+                b[y, x] = r[y, x] - d
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def menon_refine(code: np.ndarray, horiz: np.ndarray, g: np.ndarray, r: np.ndarray,
+                 b: np.ndarray) -> None:  # pragma: no cover
+    """The refinement step: green at red/blue sites from the 3-tap mean of colour-minus-green
+    along the chosen direction; then red and blue at green sites again; then red at blue and
+    blue at red sites from a 3-tap mean of red-minus-blue."""
+    H, W = g.shape
+    for y in prange(H):
+        for x in range(W):
+            c = code[(y & 1) * 2 + (x & 1)]
+            if c == 1:
+                continue
+            own = r if c == 0 else b
+            # np.int64: the parallel loop's index is unsigned, and unifying it with int64
+            # would give float64 indices.
+            if horiz[y, x]:
+                ya = np.int64(y)
+                yb = np.int64(y)
+                xa = m(x - 1, W)
+                xb = m(x + 1, W)
+            else:
+                ya = m(y - 1, H)
+                yb = m(y + 1, H)
+                xa = np.int64(x)
+                xb = np.int64(x)
+            d = ((own[ya, xa] - g[ya, xa]) + (own[y, x] - g[y, x]) + (own[yb, xb] - g[yb, xb])) / 3.0
+            g[y, x] = own[y, x] - d
+    _colour_at_green(code, g, r, b)
+    _cross_colour(code, horiz, r, b, True)
