@@ -14,6 +14,16 @@ from camkit.sensor import DEMOSAIC_METHODS, PATTERNS, cfa_masks, demosaic, mosai
 RNG = np.random.default_rng(5)
 
 
+def _import_colour_demosaicing():
+    """Import the oracle, undoing the change of NumPy's global print options that importing
+    'colour' makes (it would alter every later doctest's output in this process)."""
+    opts = np.get_printoptions()
+    import colour_demosaicing
+
+    np.set_printoptions(**opts)
+    return colour_demosaicing
+
+
 def _smooth_rgb(h=48, w=64):
     yy, xx = np.mgrid[0:h, 0:w] / 9.0
     return np.stack([np.sin(xx) * 0.3 + 0.5, np.cos(yy + xx / 2) * 0.3 + 0.5, np.sin(yy) * 0.3 + 0.5], -1)
@@ -60,7 +70,7 @@ def test_masks_and_mosaic():
                                                 ("malvar", "demosaicing_CFA_Bayer_Malvar2004"),
                                                 ("menon", "demosaicing_CFA_Bayer_Menon2007")])
 def test_agrees_with_colour_demosaicing(method, oracle):
-    import colour_demosaicing as cd
+    cd = _import_colour_demosaicing()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rgb = _smooth_rgb(60, 80)
