@@ -16,7 +16,7 @@ from pathlib import Path
 
 from benchmarks.harness import markdown_table, run_case
 
-MODULES = ["bench_geometry", "bench_lens", "bench_resample"]
+MODULES = ["bench_geometry", "bench_lens", "bench_resample", "bench_sensor"]
 RESULTS = Path(__file__).with_name("RESULTS.md")
 
 
@@ -27,8 +27,11 @@ def main() -> int:
     args = parser.parse_args()
 
     rows = []
+    extra = []
     for mod_name in MODULES:
         mod = importlib.import_module(f"benchmarks.{mod_name}")
+        if hasattr(mod, "extra_tables") and not args.k:
+            extra.append(mod.extra_tables())
         for case in mod.cases():
             if args.k and args.k.lower() not in case.operation.lower():
                 continue
@@ -37,7 +40,7 @@ def main() -> int:
                   f"{case.peer_name} {row.peer_s * 1e3:.2f} ms, ratio {row.ratio:.3f}",
                   file=sys.stderr, flush=True)
             rows.append(row)
-    table = markdown_table(rows)
+    table = markdown_table(rows) + "".join("\n" + t for t in extra)
     print(table)
     if not args.no_write and not args.k:
         now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")

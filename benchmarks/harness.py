@@ -19,6 +19,7 @@ class Case:
     peer: Callable[[], object]
     target: float | None = None  # the ratio camkit/peer an issue asks for (at most)
     repeats: int = 7
+    warmup: int = 2
 
 
 @dataclass(frozen=True)
@@ -53,8 +54,8 @@ def median_time(fn: Callable[[], object], repeats: int, warmup: int = 2) -> floa
 
 def run_case(case: Case) -> Row:
     # Interleave: camkit, peer, so a slow spell on the shared machine hits both.
-    ck = median_time(case.camkit, case.repeats)
-    peer = median_time(case.peer, case.repeats)
+    ck = median_time(case.camkit, case.repeats, case.warmup)
+    peer = median_time(case.peer, case.repeats, case.warmup)
     return Row(case, ck, peer)
 
 

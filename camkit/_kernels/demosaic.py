@@ -18,37 +18,51 @@ def m(i: int, n: int) -> int:  # pragma: no cover - numba
     return i
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def put(v: float, is_int: bool, hi: float) -> float:  # pragma: no cover
+    """Round half up and saturate to [0, hi] for integer outputs; floats pass unchanged (the
+    store into an unsigned array truncates, which is floor for v >= 0)."""
+    if is_int:
+        v += 0.5
+        if v < 0.0:
+            return 0.0
+        if v > hi:
+            return hi
+    return v
+
+
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def bilinear(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+def bilinear(cfa: np.ndarray, code: np.ndarray, is_int: bool, hi: float,
+             out: np.ndarray) -> None:  # pragma: no cover
     """Each missing colour is the mean of its nearest samples (2 or 4 of them)."""
     H, W = cfa.shape
     for y in prange(H):
         for x in range(W):
             c = code[(y & 1) * 2 + (x & 1)]
             v = cfa[y, x]
-            up = cfa[m(y - 1, H), x]
-            dn = cfa[m(y + 1, H), x]
-            lf = cfa[y, m(x - 1, W)]
-            rt = cfa[y, m(x + 1, W)]
-            cross = 0.25 * (up + dn + lf + rt)
-            diag = 0.25 * (cfa[m(y - 1, H), m(x - 1, W)] + cfa[m(y - 1, H), m(x + 1, W)]
-                           + cfa[m(y + 1, H), m(x - 1, W)] + cfa[m(y + 1, H), m(x + 1, W)])
+            up = np.float32(cfa[m(y - 1, H), x])
+            dn = np.float32(cfa[m(y + 1, H), x])
+            lf = np.float32(cfa[y, m(x - 1, W)])
+            rt = np.float32(cfa[y, m(x + 1, W)])
+            cross = np.float32(0.25) * (up + dn + lf + rt)
+            diag = np.float32(0.25) * (np.float32(cfa[m(y - 1, H), m(x - 1, W)])
+                                       + cfa[m(y - 1, H), m(x + 1, W)] + cfa[m(y + 1, H), m(x - 1, W)]
+                                       + cfa[m(y + 1, H), m(x + 1, W)])
             if c == 1:
                 # green site: the colour of the row's other sites is left/right, the other up/down
                 row_colour = code[(y & 1) * 2 + ((x + 1) & 1)]
-                h = 0.5 * (lf + rt)
-                vv = 0.5 * (up + dn)
                 out[y, x, 1] = v
-                out[y, x, row_colour] = h
-                out[y, x, 2 - row_colour] = vv
+                out[y, x, row_colour] = put(0.5 * (lf + rt), is_int, hi)
+                out[y, x, 2 - row_colour] = put(0.5 * (up + dn), is_int, hi)
             else:
                 out[y, x, c] = v
-                out[y, x, 1] = cross
-                out[y, x, 2 - c] = diag
+                out[y, x, 1] = put(cross, is_int, hi)
+                out[y, x, 2 - c] = put(diag, is_int, hi)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def malvar(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+def malvar(cfa: np.ndarray, code: np.ndarray, is_int: bool, hi: float,
+           out: np.ndarray) -> None:  # pragma: no cover
     """Malvar-He-Cutler gradient-corrected bilinear filters (5x5, ICASSP 2004)."""
     H, W = cfa.shape
     for y in prange(H):
@@ -63,25 +77,25 @@ def malvar(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragm
             xp2 = m(x + 2, W)
             c = code[(y & 1) * 2 + (x & 1)]
             v = cfa[y, x]
-            axial2 = cfa[ym2, x] + cfa[yp2, x] + cfa[y, xm2] + cfa[y, xp2]
-            cross1 = cfa[ym1, x] + cfa[yp1, x] + cfa[y, xm1] + cfa[y, xp1]
-            diag1 = cfa[ym1, xm1] + cfa[ym1, xp1] + cfa[yp1, xm1] + cfa[yp1, xp1]
+            axial2 = np.float32(cfa[ym2, x]) + cfa[yp2, x] + cfa[y, xm2] + cfa[y, xp2]
+            cross1 = np.float32(cfa[ym1, x]) + cfa[yp1, x] + cfa[y, xm1] + cfa[y, xp1]
+            diag1 = np.float32(cfa[ym1, xm1]) + cfa[ym1, xp1] + cfa[yp1, xm1] + cfa[yp1, xp1]
             if c == 1:
-                h1 = cfa[y, xm1] + cfa[y, xp1]
-                v1 = cfa[ym1, x] + cfa[yp1, x]
-                h2 = cfa[y, xm2] + cfa[y, xp2]
-                v2 = cfa[ym2, x] + cfa[yp2, x]
+                h1 = np.float32(cfa[y, xm1]) + cfa[y, xp1]
+                v1 = np.float32(cfa[ym1, x]) + cfa[yp1, x]
+                h2 = np.float32(cfa[y, xm2]) + cfa[y, xp2]
+                v2 = np.float32(cfa[ym2, x]) + cfa[yp2, x]
                 # colour whose samples are left/right of this green site, and the other one
                 along_row = (5.0 * v + 4.0 * h1 - h2 - diag1 + 0.5 * v2) / 8.0
                 along_col = (5.0 * v + 4.0 * v1 - v2 - diag1 + 0.5 * h2) / 8.0
                 row_colour = code[(y & 1) * 2 + ((x + 1) & 1)]
                 out[y, x, 1] = v
-                out[y, x, row_colour] = along_row
-                out[y, x, 2 - row_colour] = along_col
+                out[y, x, row_colour] = put(along_row, is_int, hi)
+                out[y, x, 2 - row_colour] = put(along_col, is_int, hi)
             else:
                 out[y, x, c] = v
-                out[y, x, 1] = (4.0 * v + 2.0 * cross1 - axial2) / 8.0
-                out[y, x, 2 - c] = (6.0 * v + 2.0 * diag1 - 1.5 * axial2) / 8.0
+                out[y, x, 1] = put((4.0 * v + 2.0 * cross1 - axial2) / 8.0, is_int, hi)
+                out[y, x, 2 - c] = put((6.0 * v + 2.0 * diag1 - 1.5 * axial2) / 8.0, is_int, hi)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
@@ -113,31 +127,40 @@ def menon_green(cfa: np.ndarray, code: np.ndarray, gh: np.ndarray, gv: np.ndarra
             dv[y, x] = abs(cv0 - cv2)
 
 
-# The classifier window of Menon et al. as (dy, dx, weight): the gradient D_H summed at
-# these offsets (the paper's 5x5 kernel, applied as a convolution with zeros outside); the
-# vertical classifier uses the transposed offsets (dx, dy).
-_WINDOW = np.array([[2, 0, 1.0], [2, -2, 1.0], [1, -1, 1.0], [0, 0, 3.0], [0, -2, 3.0],
-                    [-1, -1, 1.0], [-2, 0, 1.0], [-2, -2, 1.0]])
+@njit(cache=True, nogil=True, error_model="numpy")
+def _window_sum(d: np.ndarray, y: int, x: int, ty: int, tx: int) -> float:  # pragma: no cover
+    """The classifier window of Menon et al. (their 5x5 kernel applied as a convolution, zeros
+    outside): weight 3 at offsets (0, 0), (0, -2); weight 1 at (2, 0), (2, -2), (1, -1),
+    (-1, -1), (-2, 0), (-2, -2). (ty, tx) = (1, 0) reads the offsets as (dy, dx), as the
+    horizontal classifier does; (0, 1) reads them transposed, for the vertical one."""
+    H, W = d.shape
+    s = 0.0
+    for oy, ox, w in ((0, 0, 3.0), (0, -2, 3.0), (2, 0, 1.0), (2, -2, 1.0), (1, -1, 1.0),
+                      (-1, -1, 1.0), (-2, 0, 1.0), (-2, -2, 1.0)):
+        yy = y + (oy if ty else ox)
+        xx = x + (ox if ty else oy)
+        if 0 <= yy < H and 0 <= xx < W:
+            s += w * d[yy, xx]
+    return s
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def menon_decide(gh: np.ndarray, gv: np.ndarray, dh: np.ndarray, dv: np.ndarray, window: np.ndarray,
-                 g: np.ndarray, horiz: np.ndarray) -> None:  # pragma: no cover
+def menon_decide(gh: np.ndarray, gv: np.ndarray, dh: np.ndarray, dv: np.ndarray, g: np.ndarray,
+                 horiz: np.ndarray) -> None:  # pragma: no cover
     """Sum each direction's gradients over the classifier window and keep the direction whose
     chrominance varies less: green = G_H where sum(D_V) >= sum(D_H), else G_V."""
     H, W = gh.shape
     for y in prange(H):
+        inner_row = 2 <= y < H - 2
         for x in range(W):
-            sh = 0.0
-            sv = 0.0
-            for t in range(window.shape[0]):
-                oy = int(window[t, 0])
-                ox = int(window[t, 1])
-                w = window[t, 2]
-                if 0 <= y + oy < H and 0 <= x + ox < W:
-                    sh += w * dh[y + oy, x + ox]
-                if 0 <= y + ox < H and 0 <= x + oy < W:
-                    sv += w * dv[y + ox, x + oy]
+            if inner_row and 2 <= x < W - 2:
+                sh = (3.0 * (dh[y, x] + dh[y, x - 2]) + dh[y + 2, x] + dh[y + 2, x - 2] + dh[y + 1, x - 1]
+                      + dh[y - 1, x - 1] + dh[y - 2, x] + dh[y - 2, x - 2])
+                sv = (3.0 * (dv[y, x] + dv[y - 2, x]) + dv[y, x + 2] + dv[y - 2, x + 2] + dv[y - 1, x + 1]
+                      + dv[y - 1, x - 1] + dv[y, x - 2] + dv[y - 2, x - 2])
+            else:
+                sh = _window_sum(dh, y, x, 1, 0)
+                sv = _window_sum(dv, y, x, 0, 1)
             h = sv >= sh
             horiz[y, x] = h
             g[y, x] = gh[y, x] if h else gv[y, x]
@@ -238,3 +261,14 @@ def menon_refine(code: np.ndarray, horiz: np.ndarray, g: np.ndarray, r: np.ndarr
             g[y, x] = own[y, x] - d
     _colour_at_green(code, g, r, b)
     _cross_colour(code, horiz, r, b, True)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def assemble(r: np.ndarray, g: np.ndarray, b: np.ndarray, is_int: bool, hi: float,
+             out: np.ndarray) -> None:  # pragma: no cover
+    """Interleave the planes into (H, W, 3) of the output dtype, rounding and saturating."""
+    for y in prange(r.shape[0]):
+        for x in range(r.shape[1]):
+            out[y, x, 0] = put(r[y, x], is_int, hi)
+            out[y, x, 1] = put(g[y, x], is_int, hi)
+            out[y, x, 2] = put(b[y, x], is_int, hi)

@@ -56,31 +56,25 @@ def demosaic(raw: np.ndarray, pattern: str = "RGGB", method: str = "menon") -> n
         raise ShapeError(f"raw: expected at least 2x2 pixels (one Bayer tile), got {img.shape}")
     code = pattern_code(pattern)
     method = check_choice(method, DEMOSAIC_METHODS, "method")
-    work = np.float64 if img.dtype == np.float64 else np.float32
-    cfa = np.ascontiguousarray(img, dtype=work)
-    H, W = cfa.shape
-    out = np.empty((H, W, 3), dtype=work)
+    is_int = img.dtype.kind == "u"
+    hi = float(np.iinfo(img.dtype).max) if is_int else 0.0
+    H, W = img.shape
+    out = np.empty((H, W, 3), dtype=img.dtype)
+    src = np.ascontiguousarray(img)
     if method == "bilinear":
-        _kd.bilinear(cfa, code, out)
-    elif method == "malvar":
-        _kd.malvar(cfa, code, out)
-    else:
-        gh = np.empty_like(cfa)
-        gv = np.empty_like(cfa)
-        dh = np.empty_like(cfa)
-        dv = np.empty_like(cfa)
-        g = np.empty_like(cfa)
-        horiz = np.empty((H, W), dtype=np.bool_)
-        _kd.menon_green(cfa, code, gh, gv, dh, dv)
-        _kd.menon_decide(gh, gv, dh, dv, _kd._WINDOW, g, horiz)
-        r = np.empty_like(cfa)
-        b = np.empty_like(cfa)
-        _kd.menon_colour(cfa, code, g, horiz, r, b)
-        _kd.menon_refine(code, horiz, g, r, b)
-        out[..., 0] = r
-        out[..., 1] = g
-        out[..., 2] = b
-    if img.dtype.kind == "u":
-        info = np.iinfo(img.dtype)
-        return np.clip(np.floor(out + 0.5), info.min, info.max).astype(img.dtype)
-    return out.astype(img.dtype, copy=False)
+        _kd.bilinear(src, code, is_int, hi, out)
+        return out
+    if method == "malvar":
+        _kd.malvar(src, code, is_int, hi, out)
+        return out
+    # Menon: float planes (float64 for float64 input, else float32).
+    cfa = src.astype(np.float64 if img.dtype == np.float64 else np.float32)
+    gh, gv, dh, dv, g = (np.empty_like(cfa) for _ in range(5))
+    horiz = np.empty((H, W), dtype=np.bool_)
+    _kd.menon_green(cfa, code, gh, gv, dh, dv)
+    _kd.menon_decide(gh, gv, dh, dv, g, horiz)
+    r, b = dh, dv  # the gradients are spent: their planes take red and blue
+    _kd.menon_colour(cfa, code, g, horiz, r, b)
+    _kd.menon_refine(code, horiz, g, r, b)
+    _kd.assemble(r, g, b, is_int, hi, out)
+    return out
