@@ -1,0 +1,113 @@
+"""Rendering a planar target: ray-plane intersection and footprint-integrated shading."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def plane_coords(rays: np.ndarray, R: np.ndarray, t: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """Target-plane coordinates (u, v) where each camera ray meets the plane z_target = 0.
+
+    ``X_cam = R X_target + t``; the plane's normal in the camera frame is R[:, 2] and it
+    contains t, so the ray ``s d`` meets it at ``s = (n . t) / (n . d)``; NaN if the ray misses
+    (parallel, behind the camera, or NaN)."""
+    nx, ny, nz = R[0, 2], R[1, 2], R[2, 2]
+    nt = nx * t[0] + ny * t[1] + nz * t[2]
+    for y in prange(rays.shape[0]):
+        for x in range(rays.shape[1]):
+            dx, dy, dz = rays[y, x, 0], rays[y, x, 1], rays[y, x, 2]
+            nd = nx * dx + ny * dy + nz * dz
+            s = nt / nd
+            if not (s > 0.0):
+                out[y, x, 0] = np.nan
+                out[y, x, 1] = np.nan
+                continue
+            px = s * dx - t[0]
+            py = s * dy - t[1]
+            pz = s * dz - t[2]
+            out[y, x, 0] = R[0, 0] * px + R[1, 0] * py + R[2, 0] * pz
+            out[y, x, 1] = R[0, 1] * px + R[1, 1] * py + R[2, 1] * pz
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def checker(u: float, v: float, square: float, ext: np.ndarray, black: float, white: float,
+            background: float) -> float:  # pragma: no cover
+    """Reflectance of the board at (u, v): black where floor(u/s) + floor(v/s) is even,
+    white otherwise and in the margin, background off the sheet."""
+    if not (ext[0] <= u < ext[2] and ext[1] <= v < ext[3]):
+        return background
+    a = math.floor(u / square)
+    b = math.floor(v / square)
+    if a < -1 or b < -1 or a > ext[4] or b > ext[5]:
+        return white  # margin
+    return black if (a + b) % 2 == 0 else white
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def shade(uv: np.ndarray, square: float, ext: np.ndarray, black: float, white: float,
+          background: float, S: int, out: np.ndarray) -> None:  # pragma: no cover
+    """Each pixel's mean reflectance over its footprint: the target coordinates of the pixel
+    square [x-1/2, x+1/2] x [y-1/2, y+1/2] are mapped by the local affine approximation from
+    the neighbours' coordinates (central differences), sampled on an S x S grid. A footprint
+    inside one square (or entirely off the sheet) takes its value without sampling."""
+    H, W = uv.shape[0], uv.shape[1]
+    for yy in prange(H):
+        y = np.int64(yy)  # the parallel index is unsigned; y - 1 must stay an int
+        for x in range(W):
+            u0 = uv[y, x, 0]
+            v0 = uv[y, x, 1]
+            if not (math.isfinite(u0) and math.isfinite(v0)):
+                out[y, x] = background
+                continue
+            xl = x - 1 if x > 0 and math.isfinite(uv[y, x - 1, 0]) else x
+            xr = x + 1 if x < W - 1 and math.isfinite(uv[y, x + 1, 0]) else x
+            yu = y - 1 if y > 0 and math.isfinite(uv[y - 1, x, 0]) else y
+            yd = y + 1 if y < H - 1 and math.isfinite(uv[y + 1, x, 0]) else y
+            sx = 1.0 / max(xr - xl, 1)
+            sy = 1.0 / max(yd - yu, 1)
+            jux = (uv[y, xr, 0] - uv[y, xl, 0]) * sx
+            jvx = (uv[y, xr, 1] - uv[y, xl, 1]) * sx
+            juy = (uv[yd, x, 0] - uv[yu, x, 0]) * sy
+            jvy = (uv[yd, x, 1] - uv[yu, x, 1]) * sy
+            # Bounding box of the footprint: is it inside one square?
+            hu = 0.5 * (abs(jux) + abs(juy))
+            hv = 0.5 * (abs(jvx) + abs(jvy))
+            c0 = checker(u0 - hu, v0 - hv, square, ext, black, white, background)
+            same = (math.floor((u0 - hu) / square) == math.floor((u0 + hu) / square)
+                    and math.floor((v0 - hv) / square) == math.floor((v0 + hv) / square)
+                    and c0 == checker(u0 + hu, v0 + hv, square, ext, black, white, background)
+                    and c0 == checker(u0 - hu, v0 + hv, square, ext, black, white, background)
+                    and c0 == checker(u0 + hu, v0 - hv, square, ext, black, white, background))
+            if same:
+                out[y, x] = c0
+                continue
+            # Count samples per region, then weigh once: a footprint that lies in one region
+            # after all (it only touched a boundary) gets that region's value exactly.
+            n_black = 0
+            n_white = 0
+            n_back = 0
+            for i in range(S):
+                oy = (i + 0.5) / S - 0.5
+                for j in range(S):
+                    ox = (j + 0.5) / S - 0.5
+                    val = checker(u0 + jux * ox + juy * oy, v0 + jvx * ox + jvy * oy, square, ext,
+                                  black, white, background)
+                    if val == black:
+                        n_black += 1
+                    elif val == white:
+                        n_white += 1
+                    else:
+                        n_back += 1
+            n = S * S
+            if n_black == n:
+                out[y, x] = black
+            elif n_white == n:
+                out[y, x] = white
+            elif n_back == n:
+                out[y, x] = background
+            else:
+                out[y, x] = (n_black * black + n_white * white + n_back * background) / n
