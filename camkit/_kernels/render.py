@@ -111,3 +111,51 @@ def shade(uv: np.ndarray, square: float, ext: np.ndarray, black: float, white: f
                 out[y, x] = background
             else:
                 out[y, x] = (n_black * black + n_white * white + n_back * background) / n
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def plane_depth(rays: np.ndarray, R: np.ndarray, t: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """Depth (camera z) of the board point each ray meets; NaN where it misses."""
+    nx, ny, nz = R[0, 2], R[1, 2], R[2, 2]
+    nt = nx * t[0] + ny * t[1] + nz * t[2]
+    for y in prange(rays.shape[0]):
+        for x in range(rays.shape[1]):
+            nd = nx * rays[y, x, 0] + ny * rays[y, x, 1] + nz * rays[y, x, 2]
+            s = nt / nd
+            out[y, x] = s * rays[y, x, 2] if s > 0.0 else np.nan
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def disc_blur(img: np.ndarray, radius: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """Spatially varying defocus: each output pixel is the mean of the input over a disc of
+    its own radius (pixels), pixels weighted by their area inside the disc (estimated on a
+    4x4 sub-grid); radius < 0.5 leaves the pixel as it is. Edges replicate."""
+    H, W = img.shape[0], img.shape[1]
+    C = img.shape[2]
+    for y in prange(H):
+        for x in range(W):
+            r = radius[y, x]
+            if not (r >= 0.5):
+                for c in range(C):
+                    out[y, x, c] = img[y, x, c]
+                continue
+            R = int(r + 1.0)
+            acc = np.zeros(C)
+            wsum = 0.0
+            for dy in range(-R, R + 1):
+                yy = min(max(y + dy, 0), H - 1)
+                for dx in range(-R, R + 1):
+                    w = 0.0
+                    for sy in range(4):
+                        for sx in range(4):
+                            ox = dx + (sx + 0.5) / 4.0 - 0.5
+                            oy = dy + (sy + 0.5) / 4.0 - 0.5
+                            if ox * ox + oy * oy <= r * r:
+                                w += 1.0 / 16.0
+                    if w > 0.0:
+                        xx = min(max(x + dx, 0), W - 1)
+                        for c in range(C):
+                            acc[c] += w * img[yy, xx, c]
+                        wsum += w
+            for c in range(C):
+                out[y, x, c] = acc[c] / wsum

@@ -30,6 +30,9 @@ class RenderTruth:
     cam_from_target : Pose
     camera : CameraModel
     board : Checkerboard
+    depth : ndarray, (H, W)
+        Camera-frame z of the board point each pixel sees (NaN off the board's plane); what
+        defocus is computed from.
     """
 
     corners_px: np.ndarray
@@ -37,6 +40,7 @@ class RenderTruth:
     cam_from_target: Pose
     camera: CameraModel
     board: Checkerboard
+    depth: np.ndarray
 
 
 def _check_level(x: float, name: str) -> float:
@@ -87,13 +91,15 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     grid = np.empty((H, W, 2))
     grid[..., 0] = np.arange(W)[None, :]
     grid[..., 1] = np.arange(H)[:, None]
-    rays = camera.unproject(grid)
+    rays = np.ascontiguousarray(camera.unproject(grid))
     uv = np.empty((H, W, 2))
-    _kr.plane_coords(np.ascontiguousarray(rays), cam_from_target.R, cam_from_target.t, uv)
+    _kr.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
     ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
     image = np.empty((H, W))
     _kr.shade(uv, board.square, ext, levels[0], levels[1], levels[2], S, image)
     corners = camera.project(cam_from_target.apply(board.object_points()))
     visible = (np.isfinite(corners).all(axis=-1) & (corners[:, 0] >= 0) & (corners[:, 0] <= W - 1)
                & (corners[:, 1] >= 0) & (corners[:, 1] <= H - 1))
-    return image, RenderTruth(corners, visible, cam_from_target, camera, board)
+    depth = np.empty((H, W))
+    _kr.plane_depth(rays, cam_from_target.R, cam_from_target.t, depth)
+    return image, RenderTruth(corners, visible, cam_from_target, camera, board, depth)
