@@ -62,12 +62,14 @@ class Motion:
     samples: int = 9
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "linear_velocity", as_matrix(self.linear_velocity, (3,), "linear_velocity"))
-        object.__setattr__(self, "angular_velocity", as_matrix(self.angular_velocity, (3,), "angular_velocity"))
+        for name in ("linear_velocity", "angular_velocity"):
+            object.__setattr__(self, name, as_matrix(getattr(self, name), (3,), name))
         object.__setattr__(self, "exposure_time", as_positive_float(self.exposure_time, "exposure_time"))
         n = as_positive_int(self.samples, "samples")
         if n % 2 == 0:
-            raise ParameterError(f"samples: expected an odd number (the middle one is the reported pose), got {n}")
+            raise ParameterError(
+                f"samples: expected an odd number (the middle one is the reported pose), got {n}"
+            )
         object.__setattr__(self, "samples", n)
 
     def poses(self, cam_from_target: Pose) -> list[Pose]:
@@ -87,8 +89,8 @@ class Exposure:
     exposure_time: float
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "photons_at_white", as_positive_float(self.photons_at_white, "photons_at_white"))
-        object.__setattr__(self, "exposure_time", as_positive_float(self.exposure_time, "exposure_time"))
+        for name in ("photons_at_white", "exposure_time"):
+            object.__setattr__(self, name, as_positive_float(getattr(self, name), name))
 
 
 @dataclass(frozen=True, slots=True, kw_only=True)
@@ -115,15 +117,17 @@ class Effects:
         if self.demosaic is not None:
             check_choice(self.demosaic, DEMOSAIC_METHODS, "demosaic")
         if self.sensor is not None and self.exposure is None:
-            raise ParameterError("sensor: needs exposure (how many photons reach it); give Effects(exposure=...)")
+            raise ParameterError(
+                "sensor: needs exposure (how many photons reach it); give Effects(exposure=...)"
+            )
 
     @property
     def rgb(self) -> bool:
         return self.colour or self.chromatic is not None or self.cfa is not None
 
 
-def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard, effects: Effects | None = None,
-                *, rng: np.random.Generator | None = None,
+def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard,
+                effects: Effects | None = None, *, rng: np.random.Generator | None = None,
                 supersample: int = 16) -> tuple[np.ndarray, RenderTruth]:
     """Render a checkerboard view with the chosen physical effects, in the order light meets
     them: motion during the exposure, defocus, lateral chromatic aberration, exposure, then
@@ -141,7 +145,9 @@ def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard,
     if not isinstance(fx, Effects):
         raise ParameterError(f"effects: expected an Effects, got {type(fx).__name__}")
     if fx.sensor is not None and not isinstance(rng, np.random.Generator):
-        raise ParameterError(f"rng: expected a numpy.random.Generator (the sensor is noisy), got {type(rng).__name__}")
+        raise ParameterError(
+            f"rng: expected a numpy.random.Generator (the sensor is noisy), got {type(rng).__name__}"
+        )
     if fx.motion is None:
         img, truth = render_checkerboard(camera, cam_from_target, board, supersample=supersample)
     else:

@@ -37,11 +37,11 @@ def test_motion_blur_zero_velocity_is_static_and_motion_blurs():
 
 def test_defocus_follows_the_circle_of_confusion():
     focused = Defocus(focal_length=0.004, f_number=1.4, focus_distance=0.7, pixel_pitch=8e-6)
-    static, truth = render_checkerboard(CAM, Pose(np.eye(3), [-0.12, -0.08, 0.7]), BOARD)
+    static, _ = render_checkerboard(CAM, Pose(np.eye(3), [-0.12, -0.08, 0.7]), BOARD)
     sharp, _ = render_view(CAM, Pose(np.eye(3), [-0.12, -0.08, 0.7]), BOARD, Effects(defocus=focused))
     assert np.allclose(sharp, static)  # the board lies in the focus plane: blur < 0.5 px
     near = Defocus(focal_length=0.004, f_number=1.4, focus_distance=0.2, pixel_pitch=8e-6)
-    blurred, truth = render_view(CAM, Pose(np.eye(3), [-0.12, -0.08, 0.7]), BOARD, Effects(defocus=near))
+    blurred, _ = render_view(CAM, Pose(np.eye(3), [-0.12, -0.08, 0.7]), BOARD, Effects(defocus=near))
     assert _edge_sharpness(blurred) < 0.5 * _edge_sharpness(static)
     d = near.blur_diameter_px(np.array([0.7]))[0]
     assert d == pytest.approx(circle_of_confusion(0.004, 1.4, 0.2, 0.7) / 8e-6)
@@ -69,20 +69,18 @@ def test_full_sensor_pipeline_is_reproducible_from_the_seed():
     assert raw.shape == (480, 640) and raw.dtype == np.uint16
     # Exposure scales light: white paper collects photons_at_white * eta * K DN above black.
     white = EMVA1288Sensor()
-    expect = white.black_level_dn + white.system_gain * white.quantum_efficiency * 8000 * 0.95
-    grey, truth = render_view(CAM, POSE, BOARD, Effects(exposure=fx.exposure, sensor=white),
+    grey, _ = render_view(CAM, POSE, BOARD, Effects(exposure=fx.exposure, sensor=white),
                               rng=np.random.default_rng(1))
     margin = grey[5:40, 5:40]  # background, reflectance 0.5
     assert margin.mean() == pytest.approx(white.black_level_dn + white.system_gain * white.quantum_efficiency
                                           * 8000 * 0.5 + white.dark_current_e_per_s * 0.01 * white.system_gain,
                                           abs=1.0)
-    assert expect < white.max_dn
 
 
 def test_bad_combinations():
     with pytest.raises(ParameterError, match="sensor: needs exposure"):
         Effects(sensor=EMVA1288Sensor())
-    with pytest.raises(ParameterError, match="rng: expected a numpy.random.Generator"):
+    with pytest.raises(ParameterError, match=r"rng: expected a numpy\.random\.Generator"):
         render_view(CAM, POSE, BOARD, Effects(exposure=Exposure(photons_at_white=1e3, exposure_time=0.01),
                                               sensor=EMVA1288Sensor()))
     with pytest.raises(ParameterError, match="cfa: expected one of"):
