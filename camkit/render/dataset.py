@@ -1,0 +1,142 @@
+"""Simulated calibration datasets: views planned as a careful photographer would take them,
+rendered with the chosen effects, written with their exact ground truth."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from camkit._validate import as_positive_int
+from camkit.calib.targets import Checkerboard
+from camkit.errors import EstimationError, ParameterError
+from camkit.geometry.pose import Pose
+from camkit.geometry.rotation import matrix_from_rvec
+from camkit.io.images import write_png
+from camkit.lens.base import CameraModel
+from camkit.render.effects import Effects, render_view
+
+__all__ = ["camera_to_dict", "default_camera", "plan_views", "simulate_dataset"]
+
+
+def plan_views(camera: CameraModel, board: Checkerboard, n: int, rng: np.random.Generator, *,
+               tilt_deg: tuple[float, float] = (10.0, 50.0), fill: tuple[float, float] = (0.35, 0.6),
+               max_tries: int = 200) -> list[Pose]:
+    """Poses ``cam_from_target`` for ``n`` views: board centres spread over the image on a
+    jittered grid (so corners cover it, corners included), each board tilted by an angle in
+    ``tilt_deg`` about a random axis in its plane and rolled at random, at a distance where it
+    spans a fraction ``fill`` of the image width; every inner corner visible.
+    """
+    n = as_positive_int(n, "n")
+    if not isinstance(rng, np.random.Generator):
+        raise ParameterError(f"rng: expected a numpy.random.Generator, got {type(rng).__name__}")
+    W, H = camera.width, camera.height
+    pts = board.object_points()
+    centre = pts.mean(axis=0)
+    span = float(np.ptp(pts[:, 0]) + 2 * board.square)
+    g = int(np.ceil(np.sqrt(n)))
+    cells = [((i + 0.5) / g, (j + 0.5) / g) for j in range(g) for i in range(g)]
+    rng.shuffle(cells)
+    poses = []
+    for k in range(n):
+        cu, cv = cells[k % len(cells)]
+        for _ in range(max_tries):
+            px = np.array([(0.15 + 0.7 * (cu + rng.uniform(-0.5, 0.5) / g)) * (W - 1),
+                           (0.15 + 0.7 * (cv + rng.uniform(-0.5, 0.5) / g)) * (H - 1)])
+            ray = camera.unproject(px)
+            if not np.isfinite(ray).all() or ray[2] <= 0.2:
+                continue
+            frac = rng.uniform(*fill)
+            dist = span * camera.fx / (frac * W)
+            phi = rng.uniform(0, 2 * np.pi)
+            tilt = np.radians(rng.uniform(*tilt_deg))
+            R = matrix_from_rvec([0.0, 0.0, rng.uniform(-0.5, 0.5)]) @ matrix_from_rvec(
+                tilt * np.array([np.cos(phi), np.sin(phi), 0.0]))
+            t = ray * dist / ray[2] - R @ centre
+            pose = Pose(R, t)
+            c = camera.project(pose.apply(pts))
+            margin = 0.02 * W
+            if (np.isfinite(c).all() and (c[:, 0] > margin).all() and (c[:, 0] < W - 1 - margin).all()
+                    and (c[:, 1] > margin).all() and (c[:, 1] < H - 1 - margin).all()):
+                poses.append(pose)
+                break
+        else:
+            raise EstimationError(
+                f"could not place view {k} with every corner inside the image in {max_tries} tries: "
+                "use a smaller board, a wider lens, or a smaller fill"
+            )
+    return poses
+
+
+def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
+    """``{"type", "width", "height", and every parameter by name}``."""
+    out: dict[str, Any] = {"type": camera.name, "width": camera.width, "height": camera.height}
+    out.update({name: float(getattr(camera, name)) for name in camera.param_names})
+    return out
+
+
+def _to_file_image(img: np.ndarray) -> np.ndarray:
+    if img.dtype == np.uint16:
+        return img
+    return np.clip(np.floor(img * 255.0 + 0.5), 0, 255).astype(np.uint8)
+
+
+def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Checkerboard, views: int, *,
+                     seed: int, effects: Effects | None = None, progress: Any = None) -> Path:
+    """Render ``views`` planned views and write ``view_XXX.png`` and ``truth.json`` into
+    ``out_dir`` (created if needed). Reproducible: the same seed gives the same bytes.
+
+    ``truth.json`` holds the camera (type, size, parameters), the board, and per view the image
+    name, the pose (rotation vector and translation of ``cam_from_target``), every inner
+    corner's exact pixel position (null where not projectable) and its visibility.
+    Returns the folder.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(seed)
+    poses = plan_views(camera, board, views, rng)
+    records = []
+    for k, pose in enumerate(poses):
+        img, truth = render_view(camera, pose, board, effects, rng=rng)
+        name = f"view_{k:03d}.png"
+        write_png(out / name, _to_file_image(img))
+        records.append({
+            "image": name,
+            "cam_from_target": {"rvec": pose.rvec.tolist(), "t": pose.t.tolist()},
+            "corners_px": [None if not np.isfinite(c).all() else c.tolist() for c in truth.corners_px],
+            "visible": truth.visible.tolist(),
+        })
+        if progress is not None:
+            progress(k + 1, len(poses))
+    doc = {
+        "format": "camkit-simulated-dataset",
+        "version": 1,
+        "seed": seed,
+        "camera": camera_to_dict(camera),
+        "board": {"inner_cols": board.inner_cols, "inner_rows": board.inner_rows, "square": board.square,
+                  "margin": board.margin},
+        "pixel_origin": "centre of the top-left pixel is (0, 0)",
+        "views": records,
+    }
+    tmp = out / ".truth.json.tmp"
+    tmp.write_text(json.dumps(doc, indent=1))
+    os.replace(tmp, out / "truth.json")
+    return out
+
+
+def default_camera(model: str = "brown-conrady") -> CameraModel:
+    """A realistic built-in camera for each registry model: 1280x960, 4.8 um pixels behind
+    a 4.8 mm lens (fx = 1000 px), with a moderate barrel lens or a fisheye."""
+    from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
+
+    common = {"width": 1280, "height": 960, "cx": 641.3, "cy": 478.2}
+    if model == "pinhole":
+        return Pinhole(fx=1000.0, fy=1000.5, **common)
+    if model == "brown-conrady":
+        return BrownConrady(fx=1000.0, fy=1000.5, k1=-0.25, k2=0.08, k3=-0.01, p1=4e-4, p2=-3e-4, **common)
+    if model == "kannala-brandt":
+        return KannalaBrandt(fx=400.0, fy=400.2, k1=0.02, k2=-0.005, k3=0.001, k4=-0.0002, **common)
+    raise ParameterError(f"model: expected 'pinhole', 'brown-conrady' or 'kannala-brandt', got {model!r}")

@@ -1,0 +1,52 @@
+"""PNG writing: Pillow reads back exactly what was written; writes are atomic."""
+
+from __future__ import annotations
+
+import os
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from camkit.errors import ShapeError
+from camkit.io import write_png
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+@pytest.mark.parametrize("shape", [(7, 11), (7, 11, 3), (1, 1)])
+def test_round_trip_through_pillow(tmp_path, dtype, shape):
+    img = np.random.default_rng(0).integers(0, np.iinfo(dtype).max, shape, endpoint=True).astype(dtype)
+    path = write_png(tmp_path / "a.png", img)
+    if dtype == np.uint16 and len(shape) == 3:
+        # Pillow reads 48-bit RGB as 8-bit; OpenCV keeps the depth (in BGR order).
+        back = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)[:, :, ::-1]
+    else:
+        back = np.asarray(Image.open(path))
+    assert back.shape == img.shape and np.array_equal(back.astype(np.int64), img.astype(np.int64))
+
+
+def test_replaces_atomically_and_leaves_no_temporary(tmp_path):
+    p = tmp_path / "x.png"
+    write_png(p, np.zeros((4, 4), np.uint8))
+    write_png(p, np.full((4, 4), 9, np.uint8))
+    assert np.asarray(Image.open(p)).max() == 9
+    assert sorted(os.listdir(tmp_path)) == ["x.png"]
+    assert (p.stat().st_mode & 0o777) == 0o666 & ~_umask()
+
+
+def _umask():
+    m = os.umask(0)
+    os.umask(m)
+    return m
+
+
+def test_bad_input_leaves_the_old_file(tmp_path):
+    p = tmp_path / "keep.png"
+    write_png(p, np.zeros((4, 4), np.uint8))
+    before = p.read_bytes()
+    with pytest.raises(ShapeError, match="image: expected uint8 or uint16"):
+        write_png(p, np.zeros((4, 4)))
+    with pytest.raises(ShapeError, match="image: expected 1 or 3 channels"):
+        write_png(p, np.zeros((4, 4, 2), np.uint8))
+    assert p.read_bytes() == before
