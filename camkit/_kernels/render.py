@@ -49,7 +49,7 @@ def checker(u: float, v: float, square: float, ext: np.ndarray, black: float, wh
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def shade(uv: np.ndarray, square: float, ext: np.ndarray, black: float, white: float,
-          background: float, S: int, out: np.ndarray) -> None:  # pragma: no cover
+          bg: np.ndarray, S: int, out: np.ndarray) -> None:  # pragma: no cover
     """Each pixel's mean reflectance over its footprint: the target coordinates of the pixel
     square [x-1/2, x+1/2] x [y-1/2, y+1/2] are mapped by the local affine approximation from
     the neighbours' coordinates (central differences), sampled on an S x S grid. A footprint
@@ -58,6 +58,7 @@ def shade(uv: np.ndarray, square: float, ext: np.ndarray, black: float, white: f
     for yy in prange(H):
         y = np.int64(yy)  # the parallel index is unsigned; y - 1 must stay an int
         for x in range(W):
+            background = bg[y, x]  # this pixel's background: a constant or a texture
             u0 = uv[y, x, 0]
             v0 = uv[y, x, 1]
             if not (math.isfinite(u0) and math.isfinite(v0)):
@@ -159,3 +160,63 @@ def disc_blur(img: np.ndarray, radius: np.ndarray, out: np.ndarray) -> None:  # 
                         wsum += w
             for c in range(C):
                 out[y, x, c] = acc[c] / wsum
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def texel(tex: np.ndarray, u: float, v: float, size_u: float, size_v: float, c: int) -> float:  # pragma: no cover
+    """Bilinear texture value at plane coordinates (u, v) in [0, size_u) x [0, size_v); texel
+    centres at ((i + 0.5) size_u / w, ...), edges replicated."""
+    h, w = tex.shape[0], tex.shape[1]
+    x = u / size_u * w - 0.5
+    y = v / size_v * h - 0.5
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    xa = min(max(x0, 0), w - 1)
+    xb = min(max(x0 + 1, 0), w - 1)
+    ya = min(max(y0, 0), h - 1)
+    yb = min(max(y0 + 1, 0), h - 1)
+    return ((1 - fy) * ((1 - fx) * tex[ya, xa, c] + fx * tex[ya, xb, c])
+            + fy * ((1 - fx) * tex[yb, xa, c] + fx * tex[yb, xb, c]))
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def shade_texture(uv: np.ndarray, tex: np.ndarray, size_u: float, size_v: float, bg: np.ndarray, S: int,
+                  out: np.ndarray) -> None:  # pragma: no cover
+    """Each pixel's mean over its footprint (S x S samples on the local affine map) of a
+    texture on the plane rectangle [0, size_u) x [0, size_v), or the background off it."""
+    H, W = uv.shape[0], uv.shape[1]
+    C = out.shape[2]
+    for yy in prange(H):
+        y = np.int64(yy)
+        for x in range(W):
+            u0 = uv[y, x, 0]
+            v0 = uv[y, x, 1]
+            if not (math.isfinite(u0) and math.isfinite(v0)):
+                for c in range(C):
+                    out[y, x, c] = bg[y, x, c]
+                continue
+            xl = x - 1 if x > 0 and math.isfinite(uv[y, x - 1, 0]) else x
+            xr = x + 1 if x < W - 1 and math.isfinite(uv[y, x + 1, 0]) else x
+            yu = y - 1 if y > 0 and math.isfinite(uv[y - 1, x, 0]) else y
+            yd = y + 1 if y < H - 1 and math.isfinite(uv[y + 1, x, 0]) else y
+            sx = 1.0 / max(xr - xl, 1)
+            sy = 1.0 / max(yd - yu, 1)
+            jux = (uv[y, xr, 0] - uv[y, xl, 0]) * sx
+            jvx = (uv[y, xr, 1] - uv[y, xl, 1]) * sx
+            juy = (uv[yd, x, 0] - uv[yu, x, 0]) * sy
+            jvy = (uv[yd, x, 1] - uv[yu, x, 1]) * sy
+            for c in range(C):
+                acc = 0.0
+                for i in range(S):
+                    oy = (i + 0.5) / S - 0.5
+                    for j in range(S):
+                        ox = (j + 0.5) / S - 0.5
+                        u = u0 + jux * ox + juy * oy
+                        v = v0 + jvx * ox + jvy * oy
+                        if 0.0 <= u < size_u and 0.0 <= v < size_v:
+                            acc += texel(tex, u, v, size_u, size_v, c)
+                        else:
+                            acc += bg[y, x, c]
+                out[y, x, c] = acc / (S * S)

@@ -3,17 +3,18 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from camkit._kernels import render as _kr
-from camkit._validate import as_finite_float, as_positive_int
+from camkit._validate import as_finite_float, as_image, as_positive_int
 from camkit.calib.targets import Checkerboard
-from camkit.errors import ParameterError
+from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
 
-__all__ = ["RenderTruth", "render_checkerboard"]
+__all__ = ["RenderTruth", "render_checkerboard", "render_texture"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -50,9 +51,69 @@ def _check_level(x: float, name: str) -> float:
     return v
 
 
+def _background(background: Any, H: int, W: int, C: int) -> np.ndarray:
+    """A (H, W, C) float64 background from a reflectance or an image of the camera's size."""
+    if isinstance(background, np.ndarray) and background.ndim >= 2:
+        img = as_image(background, "background")
+        if img.shape[:2] != (H, W):
+            raise ShapeError(f"background: expected an image of the camera's size ({H}, {W}), got {img.shape}")
+        bg = img.astype(np.float64)
+        if img.dtype.kind == "u":
+            bg /= np.iinfo(img.dtype).max
+        bg = bg if bg.ndim == 3 else bg[:, :, None]
+        if bg.shape[2] != C:
+            if bg.shape[2] != 1:
+                raise ShapeError(f"background: expected 1 or {C} channels, got {bg.shape[2]}")
+            bg = np.repeat(bg, C, axis=2)
+        return np.ascontiguousarray(bg)
+    return np.full((H, W, C), _check_level(background, "background"))
+
+
+def _plane_uv(camera: CameraModel, cam_from_target: Pose) -> tuple[np.ndarray, np.ndarray]:
+    W, H = camera.width, camera.height
+    grid = np.empty((H, W, 2))
+    grid[..., 0] = np.arange(W)[None, :]
+    grid[..., 1] = np.arange(H)[:, None]
+    rays = np.ascontiguousarray(camera.unproject(grid))
+    uv = np.empty((H, W, 2))
+    _kr.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
+    depth = np.empty((H, W))
+    _kr.plane_depth(rays, cam_from_target.R, cam_from_target.t, depth)
+    return uv, depth
+
+
+def render_texture(camera: CameraModel, cam_from_target: Pose, texture: np.ndarray, size: Any, *,
+                   supersample: int = 4, background: Any = 0.5) -> tuple[np.ndarray, np.ndarray]:
+    """The image of a texture printed on the plane rectangle ``[0, width] x [0, height]``
+    (metres, ``size = (width, height)``) of the target frame, seen through ``camera``.
+
+    Each pixel averages the texture (bilinear) over its footprint on the plane, sampled on a
+    ``supersample x supersample`` grid, so a minified texture does not alias. Returns the
+    image (float64 in [0, 1] for integer textures, the texture's scale for float ones; the
+    texture's channel count) and the depth map (camera z per pixel, NaN off the plane).
+    """
+    if not isinstance(camera, CameraModel):
+        raise ParameterError(f"camera: expected a camkit camera model, got {type(camera).__name__}")
+    if not isinstance(cam_from_target, Pose):
+        raise ParameterError(f"cam_from_target: expected a Pose, got {type(cam_from_target).__name__}")
+    tex = as_image(texture, "texture")
+    tex3 = tex.astype(np.float64) / (np.iinfo(tex.dtype).max if tex.dtype.kind == "u" else 1.0)
+    tex3 = np.ascontiguousarray(tex3 if tex3.ndim == 3 else tex3[:, :, None])
+    sz = np.asarray(size, dtype=np.float64) if not isinstance(size, np.ndarray) else size.astype(np.float64)
+    if sz.shape != (2,) or not np.isfinite(sz).all() or (sz <= 0).any():
+        raise ParameterError(f"size: expected (width, height) in metres, both > 0, got {size!r}")
+    S = as_positive_int(supersample, "supersample")
+    H, W, C = camera.height, camera.width, tex3.shape[2]
+    bg = _background(background, H, W, C)
+    uv, depth = _plane_uv(camera, cam_from_target)
+    out = np.empty((H, W, C))
+    _kr.shade_texture(uv, tex3, float(sz[0]), float(sz[1]), bg, S, out)
+    return (out if tex.ndim == 3 else out[:, :, 0]), depth
+
+
 def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Checkerboard, *,
                         supersample: int = 16, black: float = 0.05, white: float = 0.95,
-                        background: float = 0.5) -> tuple[np.ndarray, RenderTruth]:
+                        background: Any = 0.5) -> tuple[np.ndarray, RenderTruth]:
     """The image (reflectance, float64 in [0, 1]) a camera forms of a checkerboard.
 
     Each pixel is traced back through ``camera.unproject`` to the board plane, and its value
@@ -71,8 +132,11 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     board : Checkerboard
     supersample : int
         Samples per pixel side at edges.
-    black, white, background : float in [0, 1]
-        Reflectances of the black squares, the white squares and margin, and off the board.
+    black, white : float in [0, 1]
+        Reflectances of the black squares, and of the white squares and margin.
+    background : float in [0, 1], or an (H, W) image of the camera's size
+        What is seen off the board: a grey level or a texture (integer images are scaled to
+        [0, 1]).
 
     Returns
     -------
@@ -86,20 +150,14 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
     S = as_positive_int(supersample, "supersample")
-    levels = [_check_level(v, n) for v, n in ((black, "black"), (white, "white"), (background, "background"))]
+    levels = [_check_level(v, n) for v, n in ((black, "black"), (white, "white"))]
     W, H = camera.width, camera.height
-    grid = np.empty((H, W, 2))
-    grid[..., 0] = np.arange(W)[None, :]
-    grid[..., 1] = np.arange(H)[:, None]
-    rays = np.ascontiguousarray(camera.unproject(grid))
-    uv = np.empty((H, W, 2))
-    _kr.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
+    bg = _background(background, H, W, 1)[:, :, 0].copy()
+    uv, depth = _plane_uv(camera, cam_from_target)
     ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
     image = np.empty((H, W))
-    _kr.shade(uv, board.square, ext, levels[0], levels[1], levels[2], S, image)
+    _kr.shade(uv, board.square, ext, levels[0], levels[1], bg, S, image)
     corners = camera.project(cam_from_target.apply(board.object_points()))
     visible = (np.isfinite(corners).all(axis=-1) & (corners[:, 0] >= 0) & (corners[:, 0] <= W - 1)
                & (corners[:, 1] >= 0) & (corners[:, 1] <= H - 1))
-    depth = np.empty((H, W))
-    _kr.plane_depth(rays, cam_from_target.R, cam_from_target.t, depth)
     return image, RenderTruth(corners, visible, cam_from_target, camera, board, depth)

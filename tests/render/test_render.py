@@ -115,3 +115,32 @@ def test_bad_input():
         Checkerboard(1, 5, 0.02)
     with pytest.raises(ParameterError, match="square: expected a positive number"):
         Checkerboard(9, 6, 0.0)
+
+
+def test_texture_target_smooth_and_minified():
+    from camkit.render import render_texture
+
+    # A smooth texture seen fronto-parallel: the image follows the texture's function of (u, v).
+    n = 256
+    yy, xx = (np.mgrid[0:n, 0:n] + 0.5) / n
+    tex = 0.5 + 0.3 * np.sin(2 * np.pi * xx) * np.cos(2 * np.pi * yy)
+    pose = Pose(np.eye(3), [-0.1, -0.1, 0.5])  # a 0.2 m square texture, 400 px wide on screen
+    img, depth = render_texture(PIN, pose, tex, (0.2, 0.2), background=0.0)
+    py, px = 479, 639  # the texture's centre is at (0.1, 0.1): pixel (639.5, 479.5)
+    u, v = (px - 639.5) * 0.5 / 1000 + 0.1, (py - 479.5) * 0.5 / 1000 + 0.1
+    assert img[py, px] == pytest.approx(0.5 + 0.3 * np.sin(2 * np.pi * u / 0.2) * np.cos(2 * np.pi * v / 0.2), abs=2e-3)
+    assert np.nanmax(np.abs(depth - 0.5)) < 1e-12
+    assert img[10, 10] == 0.0  # off the texture: the background
+    # A fine checker texture minified 4x averages to grey instead of aliasing.
+    fine = (np.add.outer(np.arange(1600), np.arange(1600)) % 2).astype(np.uint8) * 255
+    far, _ = render_texture(PIN, pose, fine, (0.2, 0.2), supersample=8)
+    inner = far[300:650, 460:820]
+    assert abs(inner.mean() - 0.5) < 0.01 and inner.std() < 0.05
+
+
+def test_background_texture():
+    bg = np.tile(np.linspace(0, 1, 1280), (960, 1))
+    img, _ = render_checkerboard(PIN, Pose(np.eye(3), [-0.12, -0.07, 0.5]), BOARD, background=bg)
+    assert np.array_equal(img[:50], bg[:50])  # above the board
+    with pytest.raises(ValueError, match="background: expected an image of the camera's size"):
+        render_checkerboard(PIN, Pose.identity(), BOARD, background=np.zeros((10, 10)))
