@@ -16,7 +16,7 @@ from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
 from camkit.lens.chromatic import LateralChromaticAberration
 from camkit.optics.thin_lens import circle_of_confusion
-from camkit.render.target import RenderTruth, render_checkerboard
+from camkit.render.target import RenderTruth, _render_board, camera_rays, render_checkerboard
 from camkit.sensor.cfa import PATTERNS, mosaic
 from camkit.sensor.demosaic import DEMOSAIC_METHODS, demosaic
 from camkit.sensor.noise import EMVA1288Sensor
@@ -152,9 +152,10 @@ def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard,
         img, truth = render_checkerboard(camera, cam_from_target, board, supersample=supersample)
     else:
         poses = fx.motion.poses(cam_from_target)
+        rays = camera_rays(camera)
         acc = None
         for k, pose in enumerate(poses):
-            im, tr = render_checkerboard(camera, pose, board, supersample=supersample)
+            im, tr = _render_board(camera, pose, board, supersample, 0.05, 0.95, 0.5, rays)
             acc = im if acc is None else acc + im
             if k == len(poses) // 2:
                 truth = tr

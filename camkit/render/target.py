@@ -69,12 +69,20 @@ def _background(background: Any, H: int, W: int, C: int) -> np.ndarray:
     return np.full((H, W, C), _check_level(background, "background"))
 
 
-def _plane_uv(camera: CameraModel, cam_from_target: Pose) -> tuple[np.ndarray, np.ndarray]:
+def camera_rays(camera: CameraModel) -> np.ndarray:
+    """Unit rays through every pixel centre, (H, W, 3): they depend on the camera only, so
+    renders of several poses (motion blur) compute them once."""
     W, H = camera.width, camera.height
     grid = np.empty((H, W, 2))
     grid[..., 0] = np.arange(W)[None, :]
     grid[..., 1] = np.arange(H)[:, None]
-    rays = np.ascontiguousarray(camera.unproject(grid))
+    return np.ascontiguousarray(camera.unproject(grid))
+
+
+def _plane_uv(camera: CameraModel, cam_from_target: Pose,
+              rays: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    W, H = camera.width, camera.height
+    rays = camera_rays(camera) if rays is None else rays
     uv = np.empty((H, W, 2))
     _kr.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
     depth = np.empty((H, W))
@@ -143,6 +151,14 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     image : ndarray, (H, W), float64
     truth : RenderTruth
     """
+    return _render_board(camera, cam_from_target, board, supersample, black, white, background, None)
+
+
+def _render_board(camera: CameraModel, cam_from_target: Pose, board: Checkerboard, supersample: int,
+                  black: float, white: float, background: Any,
+                  rays: np.ndarray | None) -> tuple[np.ndarray, RenderTruth]:
+    """render_checkerboard's body; ``rays`` (from :func:`camera_rays`) may be shared by
+    several poses of one camera."""
     if not isinstance(camera, CameraModel):
         raise ParameterError(f"camera: expected a camkit camera model, got {type(camera).__name__}")
     if not isinstance(cam_from_target, Pose):
@@ -153,7 +169,7 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     levels = [_check_level(v, n) for v, n in ((black, "black"), (white, "white"))]
     W, H = camera.width, camera.height
     bg = _background(background, H, W, 1)[:, :, 0].copy()
-    uv, depth = _plane_uv(camera, cam_from_target)
+    uv, depth = _plane_uv(camera, cam_from_target, rays)
     ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
     image = np.empty((H, W))
     _kr.shade(uv, board.square, ext, levels[0], levels[1], bg, S, image)
