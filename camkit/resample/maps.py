@@ -20,7 +20,6 @@ from camkit.lens.base import CameraModel
 from camkit.lens.brown_conrady import BrownConrady
 from camkit.lens.kannala_brandt import KannalaBrandt
 from camkit.lens.pinhole import Pinhole
-from camkit.resample.remap import new_image
 
 __all__ = ["optimal_pinhole", "reproject_map", "undistort_map"]
 
@@ -65,7 +64,7 @@ def reproject_map(src_model: CameraModel, dst_model: CameraModel, rotation: Any 
     dst = _check_model(dst_model, "dst_model")
     dt = _check_dtype(dtype)
     R = np.eye(3) if rotation is None else as_rotation_matrix(rotation, "rotation")
-    out = new_image((dst.height, dst.width, 2), dt)
+    out = np.empty((dst.height, dst.width, 2), dtype=dt)
     if type(dst) is Pinhole:
         M = np.ascontiguousarray(R @ np.linalg.inv(dst.K))
         intr = np.array([src.fx, src.fy, src.cx, src.cy, src.skew])
