@@ -1,0 +1,355 @@
+"""Camera calibration from point correspondences: closed-form start, then nonlinear
+least squares over the intrinsics, the distortion and every view's pose."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from camkit._validate import as_points, as_positive_float, as_positive_int, check_choice
+from camkit.calib.homography import find_homography
+from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
+from camkit.errors import EstimationError, ParameterError, ShapeError
+from camkit.geometry.pose import Pose
+from camkit.geometry.rotation import matrix_from_rvec
+from camkit.lens.base import CameraModel, get_model
+
+__all__ = ["CalibrationResult", "calibrate"]
+
+#: Held at their start values unless named in ``free``: skew, and the Brown-Conrady terms
+#: beyond k1, k2, p1, p2, k3 (OpenCV's default 5-coefficient model).
+DEFAULT_FIX = ("skew", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class CalibrationResult:
+    """What a calibration found, and how well it is known.
+
+    Attributes
+    ----------
+    model : CameraModel
+    poses : list of Pose
+        ``cam_from_target`` per view.
+    rms_px : float
+        Root mean square of all residual vectors' components (as OpenCV reports it).
+    std_px : (float, float)
+        Standard deviation of the residuals along x and y (as Bouguet's toolbox reports it).
+    view_rms_px : ndarray, (n_views,)
+    residuals : list of ndarray
+        Per view, (N_i, 2) pixels ``projected - observed``; NaN for rejected corners.
+    free_params : tuple of str
+        The model parameters estimated (the others were held).
+    covariance : ndarray
+        Covariance of ``free_params`` (pixels^2 noise scaled by the residual variance).
+    stddev : dict
+        Standard deviation per free parameter.
+    rejected : list of (view, index, reason)
+    converged : bool
+    iterations : int
+    cost : float
+        Final sum of squared residuals (pixels^2).
+    message : str
+    """
+
+    model: CameraModel
+    poses: list[Pose]
+    rms_px: float
+    std_px: tuple[float, float]
+    view_rms_px: np.ndarray
+    residuals: list[np.ndarray]
+    free_params: tuple[str, ...]
+    covariance: np.ndarray
+    stddev: dict[str, float]
+    rejected: list[tuple[int, int, str]] = field(default_factory=list)
+    converged: bool = False
+    iterations: int = 0
+    cost: float = float("nan")
+    message: str = ""
+
+    def view_ypr_deg(self) -> np.ndarray:
+        """Yaw, pitch, roll (degrees) of the camera relative to the board, per view (n, 3)."""
+        return np.degrees(np.array([p.inverse().ypr() for p in self.poses]))
+
+
+def _as_views(object_points: Any, image_points: Any) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    if not isinstance(object_points, list | tuple) or not isinstance(image_points, list | tuple):
+        raise ShapeError("object_points, image_points: expected lists with one array per view")
+    if len(object_points) != len(image_points):
+        raise ShapeError(f"object_points, image_points: expected one array per view each, got "
+                         f"{len(object_points)} and {len(image_points)}")
+    objs, imgs = [], []
+    for i, (o, p) in enumerate(zip(object_points, image_points, strict=True)):
+        o = as_points(o, 3, f"object_points[{i}]")
+        p = as_points(p, 2, f"image_points[{i}]", nan_rows=True)
+        if o.ndim != 2 or p.ndim != 2 or len(o) != len(p):
+            raise ShapeError(f"view {i}: expected (N, 3) object points and (N, 2) image points, got "
+                             f"{o.shape} and {p.shape}")
+        if np.abs(o[:, 2]).max() > 1e-9 * max(1.0, np.abs(o).max()):
+            raise ParameterError(f"object_points[{i}]: expected a planar target with Z = 0")
+        objs.append(o)
+        imgs.append(p)
+    return objs, imgs
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    out = np.zeros((*v.shape[:-1], 3, 3))
+    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
+    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
+    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
+    return out
+
+
+def calibrate(object_points: Any, image_points: Any, *, width: int, height: int, model: str = "brown-conrady",
+              fix: tuple[str, ...] = DEFAULT_FIX, robust_loss: str | None = None, robust_scale_px: float = 1.0,
+              reject_sigma: float | None = 5.0, max_iterations: int = 200) -> CalibrationResult:
+    """Calibrate a camera from views of a planar target.
+
+    Layers: a homography per view (normalised DLT), Zhang's closed form for K and the poses,
+    a linear start for k1, k2 (Zhang 2000, sec. 3.3), then Levenberg-Marquardt over the free
+    model parameters and every pose (rotations updated multiplicatively), with the lens
+    models' analytic Jacobians. Parameters named in ``fix`` (names or groups such as
+    ``"tangential"``) keep their start value (0 for distortion). ``robust_loss`` ("huber" or
+    "cauchy", scale ``robust_scale_px``) reweights residuals; corners whose residual exceeds
+    ``reject_sigma`` robust standard deviations are rejected with the reason recorded, and the
+    fit repeated once.
+
+    Parameters
+    ----------
+    object_points : list of (N_i, 3) arrays, Z = 0
+    image_points : list of (N_i, 2) arrays; NaN rows for corners not seen
+    width, height : int
+    model : registry name
+
+    Returns
+    -------
+    CalibrationResult
+
+    Raises
+    ------
+    EstimationError
+        Too few views or points, or views that cannot determine the camera; the message names
+        the cause and what to do.
+    """
+    objs, imgs = _as_views(object_points, image_points)
+    w = as_positive_int(width, "width")
+    h = as_positive_int(height, "height")
+    cls = get_model(model)
+    if robust_loss is not None:
+        check_choice(robust_loss, ("huber", "cauchy"), "robust_loss")
+    scale = as_positive_float(robust_scale_px, "robust_scale_px")
+    fixed = set(cls.param_indices(tuple(f for f in fix if f in cls.param_names or f in cls.param_groups)))
+    free = [i for i in range(len(cls.param_names)) if i not in fixed]
+    # Closed-form start (pinhole part), from views with >= 4 seen points.
+    Hs, keep = [], []
+    for o, p in zip(objs, imgs, strict=True):
+        ok = np.isfinite(p).all(axis=1)
+        if ok.sum() >= 4:
+            Hs.append(find_homography(o[ok, :2], p[ok]))
+            keep.append(True)
+        else:
+            keep.append(False)
+    if sum(keep) < (2 if "skew" not in {cls.param_names[i] for i in free} else 3):
+        raise EstimationError(f"views: only {sum(keep)} views have 4 or more corners; calibration needs at least "
+                              "3 (2 with skew held at 0) views of the board in different orientations")
+    K = intrinsics_from_homographies(Hs, zero_skew=0 not in [i for i in free if cls.param_names[i] == "skew"])
+    start_poses = poses_from_homographies(K, Hs)
+    normals = np.array([p.R[:, 2] for p in start_poses])
+    spread = np.degrees(np.arccos(np.clip(np.abs(normals @ normals.T), -1, 1))).max()
+    if spread < 5.0:
+        # Zhang 2000 sec. 3.3: with every board normal parallel the focal length is not
+        # determined; with lens distortion the linear system is not exactly singular, so this
+        # is checked on the geometry, not on the numbers.
+        raise EstimationError(f"views: every board is within {spread:.1f} degrees of the same orientation; the "
+                              "focal length cannot be determined. Tilt the board differently between photos "
+                              "(10-50 degrees, about different axes)")
+    poses_k = iter(start_poses)
+    poses = [next(poses_k) if k else None for k in keep]
+    start = {"fx": K[0, 0], "fy": K[1, 1], "cx": K[0, 2], "cy": K[1, 2], "skew": K[0, 1]}
+    if "skew" in {cls.param_names[i] for i in fixed}:
+        start["skew"] = 0.0
+    cam = cls(**start, width=w, height=h)
+    views = [i for i, k in enumerate(keep) if k]
+    cam = _linear_radial_start(cam, [objs[i] for i in views], [imgs[i] for i in views], [poses[i] for i in views],
+                               free)
+    mask = [np.isfinite(imgs[i]).all(axis=1) for i in views]
+    rejected: list[tuple[int, int, str]] = []
+    for rnd in range(2):
+        cam, vposes, info = _levenberg_marquardt(cam, [objs[i] for i in views], [imgs[i] for i in views],
+                                                 [poses[i] for i in views], mask, free, robust_loss, scale,
+                                                 max_iterations)
+        for k, i in enumerate(views):
+            poses[i] = vposes[k]
+        if reject_sigma is None or rnd == 1:
+            break
+        res = np.concatenate([np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i])[m].T))
+                              for i, m in zip(views, mask, strict=True)])
+        sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
+        limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
+        changed = False
+        for k, i in enumerate(views):
+            r = np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i]).T))
+            bad = mask[k] & (r > limit)
+            for j in np.flatnonzero(bad):
+                rejected.append((i, int(j), f"residual {r[j]:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
+            if bad.any():
+                mask[k] = mask[k] & ~bad
+                changed = True
+        if not changed:
+            break
+    return _result(cam, objs, imgs, poses, views, mask, free, info, rejected)
+
+
+def _residual(cam: CameraModel, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
+    return cam.project(pose.apply(obj)) - img
+
+
+def _linear_radial_start(cam: CameraModel, objs, imgs, poses, free) -> CameraModel:
+    """k1, k2 from the pinhole start by linear least squares (Zhang 2000, eq. 13)."""
+    names = {cam.param_names[i] for i in free}
+    if not {"k1", "k2"} <= names or cam.name != "brown-conrady":
+        return cam
+    rows, rhs = [], []
+    for o, p, pose in zip(objs, imgs, poses, strict=True):
+        X = pose.apply(o)
+        x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+        r2 = x * x + y * y
+        u = cam.fx * x + cam.cx
+        v = cam.fy * y + cam.cy
+        ok = np.isfinite(p).all(axis=1)
+        rows += [np.stack([(u - cam.cx) * r2, (u - cam.cx) * r2 * r2], -1)[ok],
+                 np.stack([(v - cam.cy) * r2, (v - cam.cy) * r2 * r2], -1)[ok]]
+        rhs += [(p[:, 0] - u)[ok], (p[:, 1] - v)[ok]]
+    k = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
+    try:
+        return cam.replace(k1=float(k[0]), k2=float(k[1]))
+    except ParameterError:
+        return cam
+
+
+def _weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
+    if loss is None:
+        return np.ones(len(r))
+    n = np.hypot(r[:, 0], r[:, 1]) / scale
+    if loss == "huber":
+        return np.where(n <= 1, 1.0, 1.0 / np.maximum(n, 1e-300))
+    return 1.0 / (1.0 + n * n)
+
+
+def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations):
+    """Minimise the (weighted) squared reprojection error over free model parameters and poses.
+    Pose updates: R <- exp([w]x) R, t <- t + dt (a local parametrisation of the rotation)."""
+    n_free = len(free)
+    n_views = len(objs)
+    n_params = n_free + 6 * n_views
+    p_model = cam.params()
+    cls = type(cam)
+
+    def evaluate(p_model, poses):
+        c = cls.from_params(p_model, width=cam.width, height=cam.height)
+        rs, Js = [], []
+        for k, (o, img, pose) in enumerate(zip(objs, imgs, poses, strict=True)):
+            m = mask[k]
+            X = pose.apply(o[m])
+            uv, dp, dk = c.project_with_jacobian(X)
+            r = uv - img[m]
+            J = np.zeros((len(X), 2, n_params))
+            J[:, :, :n_free] = dk[:, :, free]
+            RX = X - pose.t
+            J[:, :, n_free + 6 * k:n_free + 6 * k + 3] = dp @ -_skew(RX)
+            J[:, :, n_free + 6 * k + 3:n_free + 6 * k + 6] = dp
+            rs.append(r)
+            Js.append(J)
+        r = np.concatenate(rs)
+        J = np.concatenate(Js)
+        return c, r, J
+
+    c, r, J = evaluate(p_model, poses)
+    if n_params > 2 * len(r):
+        raise EstimationError(f"points: {len(r)} corners cannot determine {n_params} unknowns; use more views "
+                              "or more corners per view")
+    wts = _weights(r, loss, scale)
+    cost = float((wts[:, None] * r * r).sum())
+    if not np.isfinite(cost):
+        raise EstimationError("start: the closed-form start projects points outside the lens model's valid "
+                              "region; check the object points' units and the image points' order")
+    mu = 1e-3
+    converged, message, it = False, "", 0
+    for it in range(1, max_iterations + 1):  # noqa: B007 - the count is reported after the loop
+        Jf = J.reshape(-1, n_params) * np.repeat(np.sqrt(wts), 2)[:, None]
+        rf = (r * np.sqrt(wts)[:, None]).ravel()
+        A = Jf.T @ Jf
+        g = Jf.T @ rf
+        diag = np.diag(A).copy()
+        diag[diag <= 0] = 1.0
+        improved = False
+        for _ in range(30):
+            try:
+                step = np.linalg.solve(A + mu * np.diag(diag), -g)
+            except np.linalg.LinAlgError:
+                mu *= 10
+                continue
+            p_new = p_model.copy()
+            p_new[free] += step[:n_free]
+            new_poses = []
+            for k, pose in enumerate(poses):
+                d = step[n_free + 6 * k:n_free + 6 * k + 6]
+                # R' = exp([w]x) R, t' = t + dt: consistent with d X / d w = -[R X_o]x above.
+                new_poses.append(Pose(matrix_from_rvec(d[:3]) @ pose.R, pose.t + d[3:]))
+            try:
+                c_new, r_new, J_new = evaluate(p_new, new_poses)
+            except ParameterError:
+                mu *= 10
+                continue
+            w_new = _weights(r_new, loss, scale)
+            cost_new = float((w_new[:, None] * r_new * r_new).sum())
+            if np.isfinite(cost_new) and cost_new < cost:
+                rel = (cost - cost_new) / max(cost, 1e-300)
+                p_model, poses, c, r, J, wts, cost = p_new, new_poses, c_new, r_new, J_new, w_new, cost_new
+                mu = max(mu / 3, 1e-12)
+                improved = True
+                if rel < 1e-12 or np.abs(step).max() < 1e-12:
+                    converged, message = True, f"converged: relative cost decrease {rel:.1e} < 1e-12"
+                break
+            mu *= 4
+        if not improved:
+            converged = True
+            message = "converged: no step reduces the cost further"
+            break
+        if converged:
+            break
+    else:
+        message = f"stopped after {max_iterations} iterations without converging"
+    return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message, "J": J,
+                      "n_params": n_params}
+
+
+def _result(cam, objs, imgs, poses, views, mask, free, info, rejected) -> CalibrationResult:
+    residuals = [np.full_like(imgs[i], np.nan) for i in range(len(imgs))]
+    all_r = []
+    view_rms = np.full(len(imgs), np.nan)
+    for k, i in enumerate(views):
+        r = _residual(cam, poses[i], objs[i], imgs[i])
+        r[~mask[k]] = np.nan
+        residuals[i] = r
+        good = r[mask[k]]
+        all_r.append(good)
+        view_rms[i] = float(np.sqrt((good**2).mean())) if len(good) else np.nan
+    R = np.concatenate(all_r)
+    J = info["J"].reshape(-1, info["n_params"])
+    dof = max(R.size - info["n_params"], 1)
+    sigma2 = float((R**2).sum() / dof)
+    try:
+        cov_all = np.linalg.inv(J.T @ J) * sigma2
+    except np.linalg.LinAlgError:
+        cov_all = np.full((info["n_params"], info["n_params"]), np.nan)
+    n_free = len(free)
+    cov = cov_all[:n_free, :n_free]
+    names = tuple(cam.param_names[i] for i in free)
+    return CalibrationResult(
+        model=cam, poses=[poses[i] for i in views], rms_px=float(np.sqrt((R**2).mean())),
+        std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms[views],
+        residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
+        stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,
+        converged=info["converged"], iterations=info["iterations"], cost=info["cost"], message=info["message"])

@@ -1,0 +1,107 @@
+"""Plane-to-image homographies by the normalised direct linear transform."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from camkit._validate import as_points
+from camkit.errors import EstimationError, ShapeError
+
+__all__ = ["find_homography"]
+
+
+def _normaliser(p: np.ndarray) -> np.ndarray:
+    """Similarity moving the centroid to 0 and the mean distance to sqrt(2) (Hartley 1997)."""
+    c = p.mean(axis=0)
+    d = np.sqrt(((p - c) ** 2).sum(axis=1)).mean()
+    if d < 1e-12:
+        raise EstimationError("points: all points coincide; a homography needs at least 4 spread points")
+    s = np.sqrt(2.0) / d
+    return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
+
+
+def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> np.ndarray:
+    """The homography ``H`` with ``lambda [u, v, 1] = H [x, y, 1]`` from plane points to pixels.
+
+    Normalised DLT (R. Hartley, "In defense of the eight-point algorithm", IEEE TPAMI 19(6),
+    1997; Hartley & Zisserman, *Multiple View Geometry*, alg. 4.2), then, with ``refine``,
+    Gauss-Newton on the reprojection error in the image (the maximum-likelihood estimate for
+    Gaussian pixel noise), stopped when the step no longer reduces it.
+
+    Parameters
+    ----------
+    plane_points : array_like, (N, 2), N >= 4, not collinear
+    pixels : array_like, (N, 2)
+
+    Returns
+    -------
+    ndarray, (3, 3), scaled so that ``H[2, 2] = 1`` (or unit norm if that entry is ~0)
+    """
+    X = as_points(plane_points, 2, "plane_points")
+    u = as_points(pixels, 2, "pixels")
+    if X.ndim != 2 or X.shape != u.shape:
+        raise ShapeError(f"plane_points, pixels: expected equal shapes (N, 2), got {X.shape} and {u.shape}")
+    n = X.shape[0]
+    if n < 4:
+        raise EstimationError(f"points: a homography needs at least 4 correspondences, got {n}")
+    Tx, Tu = _normaliser(X), _normaliser(u)
+    Xn = X @ Tx[:2, :2].T + Tx[:2, 2]
+    un = u @ Tu[:2, :2].T + Tu[:2, 2]
+    A = np.zeros((2 * n, 9))
+    A[0::2, 0:2] = Xn
+    A[0::2, 2] = 1
+    A[0::2, 6:8] = -un[:, :1] * Xn
+    A[0::2, 8] = -un[:, 0]
+    A[1::2, 3:5] = Xn
+    A[1::2, 5] = 1
+    A[1::2, 6:8] = -un[:, 1:2] * Xn
+    A[1::2, 8] = -un[:, 1]
+    _, s, vt = np.linalg.svd(A)
+    if s[-2] < 1e-9 * s[0]:
+        raise EstimationError("points: degenerate configuration (collinear points?); a homography needs "
+                              "at least 4 points, no 3 of them on a line")
+    Hn = vt[-1].reshape(3, 3)
+    H = np.linalg.solve(Tu, Hn @ Tx)
+    H = H / H[2, 2] if abs(H[2, 2]) > 1e-12 * np.abs(H).max() else H / np.linalg.norm(H)
+    if refine:
+        H = _refine(H, X, u)
+    return H
+
+
+def _project(h: np.ndarray, X: np.ndarray) -> np.ndarray:
+    H = np.append(h, 1.0).reshape(3, 3)
+    w = H[2, 0] * X[:, 0] + H[2, 1] * X[:, 1] + H[2, 2]
+    return np.stack([(H[0, 0] * X[:, 0] + H[0, 1] * X[:, 1] + H[0, 2]) / w,
+                     (H[1, 0] * X[:, 0] + H[1, 1] * X[:, 1] + H[1, 2]) / w], axis=-1)
+
+
+def _refine(H: np.ndarray, X: np.ndarray, u: np.ndarray) -> np.ndarray:
+    if abs(H[2, 2]) < 1e-12:
+        return H
+    h = (H / H[2, 2]).ravel()[:8]
+    r = (_project(h, X) - u).ravel()
+    cost = r @ r
+    for _ in range(50):
+        Hm = np.append(h, 1.0).reshape(3, 3)
+        w = Hm[2, 0] * X[:, 0] + Hm[2, 1] * X[:, 1] + 1.0
+        p = _project(h, X)
+        J = np.zeros((2 * len(X), 8))
+        J[0::2, 0:2] = X / w[:, None]
+        J[0::2, 2] = 1 / w
+        J[0::2, 6:8] = -p[:, :1] * X / w[:, None]
+        J[1::2, 3:5] = X / w[:, None]
+        J[1::2, 5] = 1 / w
+        J[1::2, 6:8] = -p[:, 1:2] * X / w[:, None]
+        step = np.linalg.lstsq(J, -r, rcond=None)[0]
+        h_new = h + step
+        r_new = (_project(h_new, X) - u).ravel()
+        c_new = r_new @ r_new
+        if not c_new < cost:
+            break
+        converged = cost - c_new <= 1e-12 * max(cost, 1e-300)
+        h, r, cost = h_new, r_new, c_new
+        if converged:
+            break
+    return np.append(h, 1.0).reshape(3, 3)
