@@ -2,6 +2,7 @@
 
 from camkit.calib.calibrate import DEFAULT_FIX, CalibrationResult, calibrate
 from camkit.calib.homography import find_homography
+from camkit.calib.pnp import PnPResult, solve_pnp
 from camkit.calib.targets import Checkerboard
 from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
 
@@ -9,8 +10,10 @@ __all__ = [
     "DEFAULT_FIX",
     "CalibrationResult",
     "Checkerboard",
+    "PnPResult",
     "calibrate",
     "find_homography",
     "intrinsics_from_homographies",
     "poses_from_homographies",
+    "solve_pnp",
 ]
