@@ -1,5 +1,21 @@
-"""File formats: images (the camera files arrive with calibration)."""
+"""File formats: images and camera files."""
 
+from camkit.io.camera_files import (
+    CAMERA_FORMAT_VERSION,
+    load_camera,
+    read_opencv_yaml,
+    save_camera,
+    write_colmap_cameras,
+    write_opencv_yaml,
+)
 from camkit.io.images import write_png
 
-__all__ = ["write_png"]
+__all__ = [
+    "CAMERA_FORMAT_VERSION",
+    "load_camera",
+    "read_opencv_yaml",
+    "save_camera",
+    "write_colmap_cameras",
+    "write_opencv_yaml",
+    "write_png",
+]

@@ -1,0 +1,112 @@
+"""Camera files: JSON round trips, OpenCV YAML both ways (OpenCV as oracle), ROS
+camera_info, COLMAP's 0.5 px shift, malformed files refused."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+from camkit.errors import ParameterError
+from camkit.io import load_camera, read_opencv_yaml, save_camera, write_colmap_cameras, write_opencv_yaml
+from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
+from camkit.render import default_camera
+
+MODELS = [default_camera(n) for n in ("pinhole", "brown-conrady", "kannala-brandt")]
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda m: m.name)
+def test_json_round_trip(tmp_path, model):
+    p = save_camera(tmp_path / "cam.json", model, note="test")
+    assert load_camera(p) == model
+    doc = json.loads(p.read_text())
+    assert doc["version"] == 1 and doc["model"]["type"] == model.name and doc["note"] == "test"
+
+
+def test_json_malformed(tmp_path):
+    p = tmp_path / "bad.json"
+    cases = [
+        ("{not json", "not valid JSON"),
+        (json.dumps({"format": "other"}), "not a camkit camera file"),
+        (json.dumps({"format": "camkit-camera", "version": 99, "model": {}}), "unsupported camera file version"),
+        (json.dumps({"format": "camkit-camera", "version": 1, "model": {"type": "nope"}}), "model.type: expected"),
+        (json.dumps({"format": "camkit-camera", "version": 1,
+                     "model": {"type": "pinhole", "width": 10, "height": 10, "fx": 1, "fy": 1, "cx": 0, "cy": 0,
+                               "kk1": 0.1}}), "unknown keys ['kk1']"),
+        (json.dumps({"format": "camkit-camera", "version": 1,
+                     "model": {"type": "pinhole", "width": 10, "height": 10, "fx": -1, "fy": 1, "cx": 0,
+                               "cy": 0}}), "fx: expected a positive"),
+    ]
+    for text, needle in cases:
+        p.write_text(text)
+        with pytest.raises(ParameterError) as info:
+            load_camera(p)
+        assert needle in str(info.value)
+
+
+@pytest.mark.parametrize("model", MODELS[1:], ids=lambda m: m.name)
+def test_opencv_yaml_both_ways(tmp_path, model):
+    p = write_opencv_yaml(tmp_path / "cam.yaml", model)
+    fs = cv2.FileStorage(str(p), cv2.FILE_STORAGE_READ)  # OpenCV reads what we write
+    K, d = model.to_opencv()
+    assert np.allclose(fs.getNode("camera_matrix").mat(), K)
+    assert np.allclose(fs.getNode("distortion_coefficients").mat().ravel(), d)
+    assert int(fs.getNode("image_width").real()) == model.width
+    fs.release()
+    assert read_opencv_yaml(p) == model
+    # ... and we read what OpenCV writes.
+    q = tmp_path / "cv.yaml"
+    fs = cv2.FileStorage(str(q), cv2.FILE_STORAGE_WRITE)
+    fs.write("image_width", model.width)
+    fs.write("image_height", model.height)
+    fs.write("camera_matrix", K)
+    if isinstance(model, KannalaBrandt):
+        fs.write("distortion_model", "equidistant")
+    fs.write("distortion_coefficients", d.reshape(1, -1))
+    fs.release()
+    assert read_opencv_yaml(q) == model
+
+
+def test_ros_camera_info(tmp_path):
+    p = tmp_path / "ros.yaml"
+    p.write_text("""image_width: 640
+image_height: 480
+camera_name: narrow_stereo
+camera_matrix:
+  rows: 3
+  cols: 3
+  data: [430.215550, 0.000000, 306.691343,
+         0.000000, 430.531693, 227.224800, 0.000000, 0.000000, 1.000000]
+distortion_model: plumb_bob
+distortion_coefficients:
+  rows: 1
+  cols: 5
+  data: [-0.337586, 0.111612, -0.000218, -0.000679, 0.000000]
+""")
+    cam = read_opencv_yaml(p)
+    assert isinstance(cam, BrownConrady) and cam.fx == 430.21555 and cam.k1 == -0.337586 and cam.width == 640
+
+
+def test_yaml_malformed(tmp_path):
+    p = tmp_path / "bad.yaml"
+    for text, needle in [("image_width: 640\n", "image_height"),
+                         ("image_width: 640\nimage_height: 480\n", "missing matrix 'camera_matrix'"),
+                         ("image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 2]\n",
+                          "3x3 expected 9 values"),
+                         ("!!python/object:os.system ls\n", "cannot read line")]:
+        p.write_text(text)
+        with pytest.raises(ParameterError) as info:
+            read_opencv_yaml(p)
+        assert needle in str(info.value)
+
+
+def test_colmap_export_shifts_the_origin(tmp_path):
+    p = write_colmap_cameras(tmp_path / "cameras.txt", MODELS)
+    rows = [ln.split() for ln in p.read_text().splitlines() if not ln.startswith("#")]
+    assert [r[1] for r in rows] == ["PINHOLE", "FULL_OPENCV", "OPENCV_FISHEYE"]
+    for r, m in zip(rows, MODELS, strict=True):
+        assert float(r[6]) - 0.5 == pytest.approx(m.cx) and float(r[7]) - 0.5 == pytest.approx(m.cy)
+    with pytest.raises(ParameterError, match="COLMAP has no skew"):
+        write_colmap_cameras(tmp_path / "x.txt", [Pinhole(fx=1.0, fy=1.0, cx=0, cy=0, skew=0.1, width=2, height=2)])
