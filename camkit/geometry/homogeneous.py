@@ -5,7 +5,6 @@ from __future__ import annotations
 from typing import Any
 
 import numpy as np
-import scipy.linalg
 
 from camkit._validate import as_matrix, as_points, as_real_array
 from camkit.errors import ParameterError, ShapeError
@@ -49,6 +48,14 @@ def from_homogeneous(points: Any) -> np.ndarray:
     w = p[..., -1:]
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.where(w != 0, p[..., :-1] / w, np.nan)
+
+
+def _rq(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """RQ decomposition ``M = R Q`` (R upper triangular, Q orthogonal) from NumPy's QR: with
+    the reversal permutation P, ``(P M)^T = Q' R'`` gives ``M = (P R'^T P)(P Q'^T)``."""
+    P = np.eye(3)[::-1]
+    q, r = np.linalg.qr((P @ M).T)
+    return P @ r.T @ P, P @ q.T
 
 
 def _as_K(K: Any) -> np.ndarray:
@@ -119,7 +126,7 @@ def decompose_projection_matrix(P: Any) -> tuple[np.ndarray, Pose]:
     if np.linalg.det(M) < 0:
         p = -p
         M = p[:, :3]
-    K, R = scipy.linalg.rq(M)
+    K, R = _rq(M)
     D = np.diag(np.sign(np.diag(K)))  # D D = I; K D has a positive diagonal
     K, R = K @ D, D @ R
     t = np.linalg.solve(K, p[:, 3])
