@@ -42,8 +42,8 @@ def checker(u: float, v: float, square: float, ext: np.ndarray, black: float, wh
         return background
     a = math.floor(u / square)
     b = math.floor(v / square)
-    if a < -1 or b < -1 or a > ext[4] or b > ext[5]:
-        return white  # margin
+    if a < -1 or b < -1 or a >= ext[4] or b >= ext[5]:
+        return white  # margin: the squares have indices -1 .. inner_cols - 1 (and rows alike)
     return black if (a + b) % 2 == 0 else white
 
 

@@ -1,6 +1,7 @@
 """Calibration: targets, homographies, Zhang's closed form and nonlinear refinement."""
 
 from camkit.calib.calibrate import DEFAULT_FIX, CalibrationResult, calibrate
+from camkit.calib.detect import CornerDetection, detect_corners
 from camkit.calib.homography import find_homography
 from camkit.calib.pnp import PnPResult, solve_pnp
 from camkit.calib.targets import Checkerboard
@@ -10,8 +11,10 @@ __all__ = [
     "DEFAULT_FIX",
     "CalibrationResult",
     "Checkerboard",
+    "CornerDetection",
     "PnPResult",
     "calibrate",
+    "detect_corners",
     "find_homography",
     "intrinsics_from_homographies",
     "poses_from_homographies",

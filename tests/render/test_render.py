@@ -30,7 +30,7 @@ def test_fronto_parallel_board_aligned_to_pixels_is_exact():
     v = (yy - 479.5) / 1000 * 0.5 + 0.07
     a, b = np.floor(u / 0.03), np.floor(v / 0.03)
     on_sheet = (u >= -0.06) & (u < 0.30) & (v >= -0.06) & (v < 0.21)
-    squares = (a >= -1) & (a <= 9) & (b >= -1) & (b <= 6)
+    squares = (a >= -1) & (a <= 8) & (b >= -1) & (b <= 5)  # 10 x 7 squares around 9 x 6 inner corners
     expect = np.where(on_sheet, np.where(squares & ((a + b) % 2 == 0), 0.1, 0.9), 0.4)
     assert np.array_equal(img, expect)
     assert np.allclose(truth.corners_px[0], [399.5, 339.5])

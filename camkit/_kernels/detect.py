@@ -1,0 +1,77 @@
+"""Kernels for checkerboard corner detection: Gaussian blur, saddle response, local maxima."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns."""
+    H, W = img.shape
+    R = max(math.ceil(3.0 * sigma), 1)
+    k = np.empty(2 * R + 1)
+    for i in range(2 * R + 1):
+        k[i] = math.exp(-0.5 * ((i - R) / sigma) ** 2)
+    k /= k.sum()
+    tmp = np.empty((H, W))
+    for y in prange(H):
+        for x in range(W):
+            acc = 0.0
+            for i in range(2 * R + 1):
+                xx = min(max(x + i - R, 0), W - 1)
+                acc += k[i] * img[y, xx]
+            tmp[y, x] = acc
+    for y in prange(H):
+        for x in range(W):
+            acc = 0.0
+            for i in range(2 * R + 1):
+                yy = min(max(y + i - R, 0), H - 1)
+                acc += k[i] * tmp[yy, x]
+            out[y, x] = acc
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def saddle_response(s: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    """-(Ixx Iyy - Ixy^2) of a smoothed image: large and positive at saddle points (X-corners)."""
+    H, W = s.shape
+    for y in prange(H):
+        for x in range(W):
+            if y == 0 or x == 0 or y == H - 1 or x == W - 1:
+                out[y, x] = 0.0
+                continue
+            ixx = s[y, x + 1] - 2.0 * s[y, x] + s[y, x - 1]
+            iyy = s[y + 1, x] - 2.0 * s[y, x] + s[y - 1, x]
+            ixy = 0.25 * (s[y + 1, x + 1] - s[y + 1, x - 1] - s[y - 1, x + 1] + s[y - 1, x - 1])
+            out[y, x] = -(ixx * iyy - ixy * ixy)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def local_maxima(r: np.ndarray, radius: int, threshold: float, out: np.ndarray) -> int:  # pragma: no cover
+    """Pixels that are the maximum of their (2 radius + 1)^2 window and above threshold; writes
+    (x, y) rows into out and returns how many (at most out.shape[0])."""
+    H, W = r.shape
+    n = 0
+    for y in range(radius, H - radius):
+        for x in range(radius, W - radius):
+            v = r[y, x]
+            if v <= threshold:
+                continue
+            is_max = True
+            for dy in range(-radius, radius + 1):
+                for dx in range(-radius, radius + 1):
+                    if r[y + dy, x + dx] > v:
+                        is_max = False
+                        break
+                if not is_max:
+                    break
+            if is_max:
+                if n >= out.shape[0]:
+                    return n
+                out[n, 0] = x
+                out[n, 1] = y
+                n += 1
+    return n

@@ -1,0 +1,81 @@
+"""Checkerboard detection: the real Bouguet set end to end (acceptance), simulator images
+against exact truth, input kinds and bad input."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from camkit.calib import DEFAULT_FIX, Checkerboard, calibrate, detect_corners
+from camkit.errors import ParameterError, ShapeError
+from camkit.render import default_camera, plan_views, render_checkerboard
+
+# Published result of the Camera Calibration Toolbox on this set (REFERENCE.md beside the data).
+REF = {"fx": 657.46290, "fy": 657.94673, "cx": 303.13665, "cy": 242.56935}
+
+
+def _read_tif(path):
+    cv2 = pytest.importorskip("cv2")  # the test reads the TIFFs with an oracle library
+    return cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+
+
+def test_bouguet_real_set(shared_data):
+    folder = shared_data / "bouguet_calib_example"
+    board = Checkerboard(12, 13, 0.030)
+    pts = []
+    for k in range(1, 21):
+        det = detect_corners(_read_tif(folder / f"Image{k}.tif"), board)
+        assert det.found, f"Image{k}: {det.message}"
+        assert det.n_found >= 140  # fingers cover some edge squares in a few views
+        pts.append(det.corners)
+    # The published model: k1, k2, p1, p2 (k3 = 0), no skew; default settings otherwise.
+    res = calibrate([board.object_points()] * 20, pts, width=640, height=480, fix=(*DEFAULT_FIX, "k3"))
+    m = res.model
+    # Acceptance (issue 7, 10c): fx, fy within 0.5 px and cx, cy within 1.0 px of the published
+    # values; residual std <= 0.15 px per axis. Measured: -0.33, -0.11, +0.41, +0.53 px;
+    # std 0.123, 0.117 px.
+    assert abs(m.fx - REF["fx"]) < 0.5 and abs(m.fy - REF["fy"]) < 0.5
+    assert abs(m.cx - REF["cx"]) < 1.0 and abs(m.cy - REF["cy"]) < 1.0
+    assert max(res.std_px) <= 0.15
+
+
+def test_simulated_views_calibrate_to_the_truth():
+    cam = default_camera("brown-conrady")
+    board = Checkerboard(9, 6, 0.03)
+    poses = plan_views(cam, board, 15, np.random.default_rng(2))
+    pts = []
+    for pose in poses:
+        img, truth = render_checkerboard(cam, pose, board)
+        det = detect_corners((img * 255).round().astype(np.uint8), board)
+        assert det.found and det.n_found == 54
+        assert np.nanmax(np.abs(det.corners - truth.corners_px)) < 0.1
+        pts.append(det.corners)
+    res = calibrate([board.object_points()] * 15, pts, width=cam.width, height=cam.height)
+    # Acceptance (issue 7, 10b): focal length within 0.05 %, principal point within 0.3 px.
+    assert abs(res.model.fx / cam.fx - 1) < 5e-4 and abs(res.model.fy / cam.fy - 1) < 5e-4
+    assert abs(res.model.cx - cam.cx) < 0.3 and abs(res.model.cy - cam.cy) < 0.3
+
+
+def test_input_kinds_and_no_board():
+    cam = default_camera("pinhole")
+    board = Checkerboard(9, 6, 0.03)
+    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    u8 = (img * 255).round().astype(np.uint8)
+    for variant in (u8, (img * 65535).round().astype(np.uint16), np.dstack([u8] * 3), img.astype(np.float32)):
+        det = detect_corners(variant, board)
+        assert det.found and np.nanmax(np.abs(det.corners - truth.corners_px)) < 0.1
+        assert np.isfinite(det.sigma_px).all() and (det.sigma_px < 0.1).all()
+    noise = np.random.default_rng(0).integers(0, 256, (480, 640), dtype=np.uint8)
+    det = detect_corners(noise, board)
+    assert not det.found and "not found" in det.message and np.isnan(det.corners).all()
+    assert not detect_corners(np.full((480, 640), 128, np.uint8), board).found
+
+
+def test_bad_input():
+    board = Checkerboard(9, 6, 0.03)
+    with pytest.raises(ShapeError, match="image: expected a NumPy array"):
+        detect_corners([[0, 1], [1, 0]], board)
+    with pytest.raises(ShapeError, match="image: expected dtype"):
+        detect_corners(np.zeros((10, 10), np.int32), board)
+    with pytest.raises(ParameterError, match="board: expected a Checkerboard"):
+        detect_corners(np.zeros((10, 10), np.uint8), (9, 6))
