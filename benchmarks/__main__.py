@@ -16,7 +16,7 @@ from pathlib import Path
 
 from benchmarks.harness import markdown_table, run_case
 
-MODULES = ["bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render"]
+MODULES = ["bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_calib"]
 RESULTS = Path(__file__).with_name("RESULTS.md")
 
 

@@ -237,9 +237,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
     if len(pts) > 3 * n_corners:  # clutter or noise: keep the strongest (bounds the time)
         keep = np.argsort(-strength)[:3 * n_corners]
         pts, v, sym = pts[keep], v[keep], sym[keep]
-    pts, _ = _saddle_fit(s, pts, 3)
-    good = np.isfinite(pts).all(axis=1)
-    pts, v, sym = pts[good], v[good], sym[good]
+    # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
+    # sub-pixel fit runs once, on the lattice's corners, below.
     idx, g = _assemble(pts, _edge_directions(v))
     if len(idx) < 4:
         return fail("not found: the corners form no lattice")
