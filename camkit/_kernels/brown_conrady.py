@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from camkit._kernels.rotation import PARALLEL_MIN_ROWS
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def distort(x: float, y: float, c: np.ndarray):  # pragma: no cover - numba
@@ -64,23 +66,37 @@ def valid_radius(c: np.ndarray, r_search: float, n_dirs: int, n_steps: int) -> f
             r = i * dr
             if r >= best:
                 break
-            x = r * cp
-            y = r * sp
-            xd, yd, j00, j01, j10, j11, _num, den = distort(x, y, c)
-            det = j00 * j11 - j01 * j10
-            grow = xd * (j00 * cp + j01 * sp) + yd * (j10 * cp + j11 * sp)
-            if den <= 0.0 or det <= 0.0 or grow <= 0.0:
-                best = (i - 1) * dr
+            if not _one_to_one(r, cp, sp, c):
+                # Bisect the failing step: the boundary to 1/2^20 of a step.
+                lo = (i - 1) * dr
+                hi = r
+                for _ in range(20):
+                    mid = 0.5 * (lo + hi)
+                    if _one_to_one(mid, cp, sp, c):
+                        lo = mid
+                    else:
+                        hi = mid
+                best = min(best, lo)
                 break
     return best
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
-            out: np.ndarray) -> None:  # pragma: no cover
+@njit(cache=True, nogil=True, error_model="numpy")
+def _one_to_one(r: float, cp: float, sp: float, c: np.ndarray) -> bool:  # pragma: no cover
+    """At radius r along (cp, sp): positive denominator, positive Jacobian determinant, and the
+    distorted point moving outward."""
+    xd, yd, j00, j01, j10, j11, _num, den = distort(r * cp, r * sp, c)
+    det = j00 * j11 - j01 * j10
+    grow = xd * (j00 * cp + j01 * sp) + yd * (j10 * cp + j11 * sp)
+    return den > 0.0 and det > 0.0 and grow > 0.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_rows(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+            out: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover
     """Pixels of camera points; NaN when z <= 0 or the ideal radius is outside the valid disk."""
     fx, fy, cx, cy, skew = intr[0], intr[1], intr[2], intr[3], intr[4]
-    for i in prange(pts.shape[0]):
+    for i in range(lo, hi):
         z = pts[i, 2]
         if z > 0.0:
             x = pts[i, 0] / z
@@ -95,12 +111,29 @@ def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
-                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
+def project_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+            out: np.ndarray) -> None:  # pragma: no cover
+    n = pts.shape[0]
+    for chunk in prange((n + 1023) // 1024):
+        project_rows(pts, intr, c, r2_valid, out, chunk * 1024, min(n, (chunk + 1) * 1024))
+
+
+def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+            out: np.ndarray) -> None:
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    if pts.shape[0] < PARALLEL_MIN_ROWS:
+        project_rows(pts, intr, c, r2_valid, out, 0, pts.shape[0])
+    else:
+        project_parallel(pts, intr, c, r2_valid, out)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_jacobian_rows(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover
     """Pixels, d(u, v)/d(X, Y, Z) and d(u, v)/d(params) in the order
     fx fy cx cy skew k1 k2 k3 p1 p2 k4 k5 k6 s1 s2 s3 s4 (dk is zero-initialised)."""
     fx, fy, skew = intr[0], intr[1], intr[4]
-    for i in prange(pts.shape[0]):
+    for i in range(lo, hi):
         z = pts[i, 2]
         x = pts[i, 0] / z if z > 0.0 else 0.0
         y = pts[i, 1] / z if z > 0.0 else 0.0
@@ -168,6 +201,23 @@ def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid:
         dk[i, 1, 15] = fy * r2
         dk[i, 0, 16] = skew * r2 * r2
         dk[i, 1, 16] = fy * r2 * r2
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def project_jacobian_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
+    n = pts.shape[0]
+    for chunk in prange((n + 1023) // 1024):
+        project_jacobian_rows(pts, intr, c, r2_valid, uv, dp, dk, chunk * 1024, min(n, (chunk + 1) * 1024))
+
+
+def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    if pts.shape[0] < PARALLEL_MIN_ROWS:
+        project_jacobian_rows(pts, intr, c, r2_valid, uv, dp, dk, 0, pts.shape[0])
+    else:
+        project_jacobian_parallel(pts, intr, c, r2_valid, uv, dp, dk)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

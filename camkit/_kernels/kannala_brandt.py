@@ -10,6 +10,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from camkit._kernels.rotation import PARALLEL_MIN_ROWS
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def theta_d(t: float, c: np.ndarray):  # pragma: no cover - numba
@@ -52,12 +54,12 @@ def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
         out[i, 1] = fy * yd + cy
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
-                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_jacobian_rows(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover
     """Parameters: fx fy cx cy skew k1 k2 k3 k4 (dk zero-initialised)."""
     fx, fy, skew = intr[0], intr[1], intr[4]
-    for i in prange(pts.shape[0]):
+    for i in range(lo, hi):
         X = pts[i, 0]
         Y = pts[i, 1]
         Z = pts[i, 2]
@@ -118,6 +120,23 @@ def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: 
             dk[i, 0, 5 + p] = fx * gx + skew * gy
             dk[i, 1, 5 + p] = fy * gy
             tp *= t * t
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def project_jacobian_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:  # pragma: no cover
+    n = pts.shape[0]
+    for chunk in prange((n + 1023) // 1024):
+        project_jacobian_rows(pts, intr, c, t_valid, uv, dp, dk, chunk * 1024, min(n, (chunk + 1) * 1024))
+
+
+def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
+                     uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    if pts.shape[0] < PARALLEL_MIN_ROWS:
+        project_jacobian_rows(pts, intr, c, t_valid, uv, dp, dk, 0, pts.shape[0])
+    else:
+        project_jacobian_parallel(pts, intr, c, t_valid, uv, dp, dk)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -12,10 +12,15 @@ from numba import njit, prange
 _SMALL_ANGLE = 1e-4
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def rvec_to_matrix(rvec: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """Rodrigues' formula R = cos(t) I + sin(t)/t [r]x + (1-cos t)/t^2 r r^T, rows of (N, 3)."""
-    for i in prange(rvec.shape[0]):
+#: Below this many rows the serial kernels run: launching the parallel loop costs about a
+#: millisecond on the 2-core machine, far more than a few rotations.
+PARALLEL_MIN_ROWS = 4096
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rvec_to_matrix_rows(rvec: np.ndarray, out: np.ndarray, lo: int, hi: int) -> None:  # pragma: no cover
+    """Rodrigues' formula R = cos(t) I + sin(t)/t [r]x + (1-cos t)/t^2 r r^T, rows lo..hi of (N, 3)."""
+    for i in range(lo, hi):
         x = rvec[i, 0]
         y = rvec[i, 1]
         z = rvec[i, 2]
@@ -38,6 +43,22 @@ def rvec_to_matrix(rvec: np.ndarray, out: np.ndarray) -> None:  # pragma: no cov
         out[i, 2, 0] = b * x * z - a * y
         out[i, 2, 1] = b * y * z + a * x
         out[i, 2, 2] = c + b * z * z
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def rvec_to_matrix_parallel(rvec: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover
+    n = rvec.shape[0]
+    chunks = (n + 1023) // 1024
+    for c in prange(chunks):
+        rvec_to_matrix_rows(rvec, out, c * 1024, min(n, (c + 1) * 1024))
+
+
+def rvec_to_matrix(rvec: np.ndarray, out: np.ndarray) -> None:
+    """Rows of rotation vectors (N, 3) to matrices (N, 3, 3): serial for few rows."""
+    if rvec.shape[0] < PARALLEL_MIN_ROWS:
+        rvec_to_matrix_rows(rvec, out, 0, rvec.shape[0])
+    else:
+        rvec_to_matrix_parallel(rvec, out)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

@@ -135,7 +135,7 @@ class BrownConrady(CameraModel):
                 r = float("inf")
             else:
                 r_search = max(1.5, 3.0 * self.corner_radius())
-                r = float(_kb.valid_radius(c, r_search, 64, 4096))
+                r = float(_kb.valid_radius(c, r_search, 64, 512))
             self._cache["r_valid"] = r
         return r
 
