@@ -237,38 +237,60 @@ def _weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
     return 1.0 / (1.0 + n * n)
 
 
+def _normal_blocks(Jm, Jp, r, w, view, n_views):
+    """Blocks of the weighted normal equations: U (intrinsics), W (intrinsics x pose, per view),
+    V (6x6 per view), and the gradients."""
+    sw = np.sqrt(w)[:, None, None]
+    Jm, Jp, rw = Jm * sw, Jp * sw, r * sw[:, :, 0]
+    U = np.einsum("mai,maj->ij", Jm, Jm)
+    gm = np.einsum("mai,ma->i", Jm, rw)
+    # Points are stored view by view, so per-view sums are segment sums (np.add.at is ~20x
+    # slower); a view left without points by outlier rejection gets zero blocks.
+    counts = np.bincount(view, minlength=n_views)
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+
+    def per_view(x: np.ndarray) -> np.ndarray:
+        out = np.zeros((n_views, *x.shape[1:]))
+        nz = counts > 0
+        out[nz] = np.add.reduceat(x, starts[nz], axis=0)
+        return out
+
+    V = per_view(np.einsum("mai,maj->mij", Jp, Jp))
+    W = per_view(np.einsum("mai,maj->mij", Jm, Jp))
+    gp = per_view(np.einsum("mai,ma->mi", Jp, rw))
+    return U, W, V, gm, gp
+
+
 def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations):
     """Minimise the (weighted) squared reprojection error over free model parameters and poses.
-    Pose updates: R <- exp([w]x) R, t <- t + dt (a local parametrisation of the rotation)."""
+
+    Pose updates: R <- exp([w]x) R, t <- t + dt (a local parametrisation of the rotation). All
+    views are evaluated at once (stacked points, rotations as arrays, one projection), and each
+    step solves the normal equations by the Schur complement of the block-diagonal pose part,
+    as bundle adjustment does (B. Triggs et al., "Bundle adjustment - a modern synthesis",
+    1999, sec. 6.1); the undamped complement's inverse is the intrinsics' covariance."""
     n_free = len(free)
     n_views = len(objs)
     n_params = n_free + 6 * n_views
-    p_model = cam.params()
     cls = type(cam)
-
-    def evaluate(p_model, poses):
-        c = cls.from_params(p_model, width=cam.width, height=cam.height)
-        rs, Js = [], []
-        for k, (o, img, pose) in enumerate(zip(objs, imgs, poses, strict=True)):
-            m = mask[k]
-            X = pose.apply(o[m])
-            uv, dp, dk = c.project_with_jacobian(X)
-            r = uv - img[m]
-            J = np.zeros((len(X), 2, n_params))
-            J[:, :, :n_free] = dk[:, :, free]
-            RX = X - pose.t
-            J[:, :, n_free + 6 * k:n_free + 6 * k + 3] = dp @ -_skew(RX)
-            J[:, :, n_free + 6 * k + 3:n_free + 6 * k + 6] = dp
-            rs.append(r)
-            Js.append(J)
-        r = np.concatenate(rs)
-        J = np.concatenate(Js)
-        return c, r, J
-
-    c, r, J = evaluate(p_model, poses)
-    if n_params > 2 * len(r):
-        raise EstimationError(f"points: {len(r)} corners cannot determine {n_params} unknowns; use more views "
+    obj = np.concatenate([o[m] for o, m in zip(objs, mask, strict=True)])
+    img = np.concatenate([p[m] for p, m in zip(imgs, mask, strict=True)])
+    view = np.concatenate([np.full(int(m.sum()), k) for k, m in enumerate(mask)])
+    n_pts = len(obj)
+    if n_params > 2 * n_pts:
+        raise EstimationError(f"points: {n_pts} corners cannot determine {n_params} unknowns; use more views "
                               "or more corners per view")
+    Rs = np.array([p.R for p in poses])
+    ts = np.array([p.t for p in poses])
+    p_model = cam.params()
+
+    def evaluate(p_model, Rs, ts):
+        c = cls.from_params(p_model, width=cam.width, height=cam.height)
+        RX = np.einsum("nij,nj->ni", Rs[view], obj)
+        uv, dp, dk = c.project_with_jacobian(RX + ts[view])
+        return c, uv - img, dk[:, :, free], np.concatenate([dp @ -_skew(RX), dp], axis=2)
+
+    c, r, Jm, Jp = evaluate(p_model, Rs, ts)
     wts = _weights(r, loss, scale)
     cost = float((wts[:, None] * r * r).sum())
     if not np.isfinite(cost):
@@ -277,28 +299,26 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     mu = 1e-3
     converged, message, it = False, "", 0
     for it in range(1, max_iterations + 1):  # noqa: B007 - the count is reported after the loop
-        Jf = J.reshape(-1, n_params) * np.repeat(np.sqrt(wts), 2)[:, None]
-        rf = (r * np.sqrt(wts)[:, None]).ravel()
-        A = Jf.T @ Jf
-        g = Jf.T @ rf
-        diag = np.diag(A).copy()
-        diag[diag <= 0] = 1.0
+        U, W, V, gm, gp = _normal_blocks(Jm, Jp, r, wts, view, n_views)
+        dU = np.where(np.diag(U) > 0, np.diag(U), 1.0)
+        dV = np.where(np.diagonal(V, axis1=1, axis2=2) > 0, np.diagonal(V, axis1=1, axis2=2), 1.0)
         improved = False
         for _ in range(30):
             try:
-                step = np.linalg.solve(A + mu * np.diag(diag), -g)
+                Vinv = np.linalg.inv(V + mu * dV[:, :, None] * np.eye(6))
+                S = U + mu * np.diag(dU) - np.einsum("vik,vkl,vjl->ij", W, Vinv, W)
+                dm = np.linalg.solve(S, -gm + np.einsum("vik,vkl,vl->i", W, Vinv, gp))
             except np.linalg.LinAlgError:
                 mu *= 10
                 continue
+            d = np.einsum("vkl,vl->vk", Vinv, -gp - np.einsum("vik,i->vk", W, dm))
             p_new = p_model.copy()
-            p_new[free] += step[:n_free]
-            new_poses = []
-            for k, pose in enumerate(poses):
-                d = step[n_free + 6 * k:n_free + 6 * k + 6]
-                # R' = exp([w]x) R, t' = t + dt: consistent with d X / d w = -[R X_o]x above.
-                new_poses.append(Pose(matrix_from_rvec(d[:3]) @ pose.R, pose.t + d[3:]))
+            p_new[free] += dm
+            # R' = exp([w]x) R, t' = t + dt: consistent with d X / d w = -[R X_o]x above.
+            Rs_new = matrix_from_rvec(d[:, :3]) @ Rs
+            ts_new = ts + d[:, 3:]
             try:
-                c_new, r_new, J_new = evaluate(p_new, new_poses)
+                c_new, r_new, Jm_new, Jp_new = evaluate(p_new, Rs_new, ts_new)
             except ParameterError:
                 mu *= 10
                 continue
@@ -306,10 +326,12 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
             cost_new = float((w_new[:, None] * r_new * r_new).sum())
             if np.isfinite(cost_new) and cost_new < cost:
                 rel = (cost - cost_new) / max(cost, 1e-300)
-                p_model, poses, c, r, J, wts, cost = p_new, new_poses, c_new, r_new, J_new, w_new, cost_new
+                p_model, Rs, ts, c, r, Jm, Jp, wts, cost = (p_new, Rs_new, ts_new, c_new, r_new, Jm_new, Jp_new,
+                                                             w_new, cost_new)
                 mu = max(mu / 3, 1e-12)
                 improved = True
-                if rel < 1e-12 or np.abs(step).max() < 1e-12:
+                step = max(np.abs(dm).max(initial=0.0), np.abs(d).max())
+                if rel < 1e-12 or step < 1e-12:
                     converged, message = True, f"converged: relative cost decrease {rel:.1e} < 1e-12"
                 break
             mu *= 4
@@ -321,8 +343,17 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
             break
     else:
         message = f"stopped after {max_iterations} iterations without converging"
-    return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message, "J": J,
-                      "n_params": n_params}
+    # Marginal covariance of the intrinsics (unit noise): the inverse of the undamped Schur
+    # complement of the (unweighted) normal equations.
+    U, W, V, _, _ = _normal_blocks(Jm, Jp, r, np.ones(len(r)), view, n_views)
+    try:
+        S0 = U - np.einsum("vik,vkl,vjl->ij", W, np.linalg.inv(V), W)
+        cov_unit = np.linalg.inv(S0)
+    except np.linalg.LinAlgError:
+        cov_unit = np.full((n_free, n_free), np.nan)
+    poses = [Pose(R, t) for R, t in zip(Rs, ts, strict=True)]
+    return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message,
+                      "cov_unit": cov_unit, "n_params": n_params}
 
 
 def _result(cam, objs, imgs, poses, views, mask, free, info, rejected) -> CalibrationResult:
@@ -337,15 +368,9 @@ def _result(cam, objs, imgs, poses, views, mask, free, info, rejected) -> Calibr
         all_r.append(good)
         view_rms[i] = float(np.sqrt((good**2).mean())) if len(good) else np.nan
     R = np.concatenate(all_r)
-    J = info["J"].reshape(-1, info["n_params"])
     dof = max(R.size - info["n_params"], 1)
     sigma2 = float((R**2).sum() / dof)
-    try:
-        cov_all = np.linalg.inv(J.T @ J) * sigma2
-    except np.linalg.LinAlgError:
-        cov_all = np.full((info["n_params"], info["n_params"]), np.nan)
-    n_free = len(free)
-    cov = cov_all[:n_free, :n_free]
+    cov = info["cov_unit"] * sigma2
     names = tuple(cam.param_names[i] for i in free)
     return CalibrationResult(
         model=cam, poses=[poses[i] for i in views], rms_px=float(np.sqrt((R**2).mean())),
