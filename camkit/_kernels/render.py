@@ -34,6 +34,22 @@ def plane_coords(rays: np.ndarray, R: np.ndarray, t: np.ndarray, out: np.ndarray
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def footprint(uv: np.ndarray, y: int, x: int):  # pragma: no cover
+    """Local affine map from pixel offsets to plane coordinates at (y, x): central differences
+    of the neighbours' intersections (one-sided where a neighbour misses the plane).
+    Returns (du/dx, dv/dx, du/dy, dv/dy)."""
+    H, W = uv.shape[0], uv.shape[1]
+    xl = x - 1 if x > 0 and math.isfinite(uv[y, x - 1, 0]) else x
+    xr = x + 1 if x < W - 1 and math.isfinite(uv[y, x + 1, 0]) else x
+    yu = y - 1 if y > 0 and math.isfinite(uv[y - 1, x, 0]) else y
+    yd = y + 1 if y < H - 1 and math.isfinite(uv[y + 1, x, 0]) else y
+    sx = 1.0 / max(xr - xl, 1)
+    sy = 1.0 / max(yd - yu, 1)
+    return ((uv[y, xr, 0] - uv[y, xl, 0]) * sx, (uv[y, xr, 1] - uv[y, xl, 1]) * sx,
+            (uv[yd, x, 0] - uv[yu, x, 0]) * sy, (uv[yd, x, 1] - uv[yu, x, 1]) * sy)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def checker(u: float, v: float, square: float, ext: np.ndarray, black: float, white: float,
             background: float) -> float:  # pragma: no cover
     """Reflectance of the board at (u, v): black where floor(u/s) + floor(v/s) is even,
@@ -64,16 +80,7 @@ def shade(uv: np.ndarray, square: float, ext: np.ndarray, black: float, white: f
             if not (math.isfinite(u0) and math.isfinite(v0)):
                 out[y, x] = background
                 continue
-            xl = x - 1 if x > 0 and math.isfinite(uv[y, x - 1, 0]) else x
-            xr = x + 1 if x < W - 1 and math.isfinite(uv[y, x + 1, 0]) else x
-            yu = y - 1 if y > 0 and math.isfinite(uv[y - 1, x, 0]) else y
-            yd = y + 1 if y < H - 1 and math.isfinite(uv[y + 1, x, 0]) else y
-            sx = 1.0 / max(xr - xl, 1)
-            sy = 1.0 / max(yd - yu, 1)
-            jux = (uv[y, xr, 0] - uv[y, xl, 0]) * sx
-            jvx = (uv[y, xr, 1] - uv[y, xl, 1]) * sx
-            juy = (uv[yd, x, 0] - uv[yu, x, 0]) * sy
-            jvy = (uv[yd, x, 1] - uv[yu, x, 1]) * sy
+            jux, jvx, juy, jvy = footprint(uv, y, x)
             # Bounding box of the footprint: is it inside one square?
             hu = 0.5 * (abs(jux) + abs(juy))
             hv = 0.5 * (abs(jvx) + abs(jvy))
@@ -197,16 +204,7 @@ def shade_texture(uv: np.ndarray, tex: np.ndarray, size_u: float, size_v: float,
                 for c in range(C):
                     out[y, x, c] = bg[y, x, c]
                 continue
-            xl = x - 1 if x > 0 and math.isfinite(uv[y, x - 1, 0]) else x
-            xr = x + 1 if x < W - 1 and math.isfinite(uv[y, x + 1, 0]) else x
-            yu = y - 1 if y > 0 and math.isfinite(uv[y - 1, x, 0]) else y
-            yd = y + 1 if y < H - 1 and math.isfinite(uv[y + 1, x, 0]) else y
-            sx = 1.0 / max(xr - xl, 1)
-            sy = 1.0 / max(yd - yu, 1)
-            jux = (uv[y, xr, 0] - uv[y, xl, 0]) * sx
-            jvx = (uv[y, xr, 1] - uv[y, xl, 1]) * sx
-            juy = (uv[yd, x, 0] - uv[yu, x, 0]) * sy
-            jvy = (uv[yd, x, 1] - uv[yu, x, 1]) * sy
+            jux, jvx, juy, jvy = footprint(uv, y, x)
             for c in range(C):
                 acc = 0.0
                 for i in range(S):

@@ -151,6 +151,14 @@ class CameraModel(abc.ABC):
             out.extend(cls.param_names.index(m) for m in members if cls.param_names.index(m) not in out)
         return out
 
+    def _intr(self) -> np.ndarray:
+        """``fx fy cx cy skew`` as one array, the layout every kernel takes."""
+        return np.array([self.fx, self.fy, self.cx, self.cy, self.skew])
+
+    def _jacobian_buffers(self, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Outputs of a Jacobian kernel for n points: pixels, d/d points, d/d params (zeroed)."""
+        return np.empty((n, 2)), np.empty((n, 2, 3)), np.zeros((n, 2, len(self.param_names)))
+
     @property
     def K(self) -> np.ndarray:
         """The 3x3 intrinsic matrix ``[[fx, skew, cx], [0, fy, cy], [0, 0, 1]]``."""

@@ -109,9 +109,6 @@ class BrownConrady(CameraModel):
 
         return to_opencv(self)
 
-    def _intr(self) -> np.ndarray:
-        return np.array([self.fx, self.fy, self.cx, self.cy, self.skew])
-
     def _coeffs(self) -> np.ndarray:
         return np.array([self.k1, self.k2, self.k3, self.k4, self.k5, self.k6,
                          self.p1, self.p2, self.s1, self.s2, self.s3, self.s4])
@@ -155,9 +152,6 @@ class BrownConrady(CameraModel):
         return out
 
     def _jacobian_rows(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        n = pts.shape[0]
-        uv = np.empty((n, 2))
-        dp = np.empty((n, 2, 3))
-        dk = np.zeros((n, 2, len(self.param_names)))
+        uv, dp, dk = self._jacobian_buffers(pts.shape[0])
         _kb.project_jacobian(pts, self._intr(), self._coeffs(), self._r2_valid(), uv, dp, dk)
         return uv, dp, dk
