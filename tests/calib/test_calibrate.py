@@ -100,3 +100,12 @@ def test_errors_name_the_cause():
         calibrate([OBJ] * 14, imgs, width=1280, height=960)
     with pytest.raises(ParameterError, match="expected a planar target"):
         calibrate([OBJ + np.array([0.0, 0.0, 0.1])] * 15, imgs, width=1280, height=960)
+
+
+def test_homography_needs_four_points_and_matching_shapes():
+    with pytest.raises(EstimationError, match="at least 4 correspondences"):
+        find_homography(np.zeros((3, 2)), np.zeros((3, 2)))
+    with pytest.raises(ShapeError, match="expected equal shapes"):
+        find_homography(np.zeros((5, 2)), np.zeros((6, 2)))
+    with pytest.raises(EstimationError, match="all points coincide"):
+        find_homography(np.ones((5, 2)), np.random.default_rng(0).uniform(size=(5, 2)))

@@ -166,3 +166,19 @@ def test_background_texture():
     assert np.array_equal(img[:50], bg[:50])  # above the board
     with pytest.raises(ValueError, match="background: expected an image of the camera's size"):
         render_checkerboard(PIN, Pose.identity(), BOARD, background=np.zeros((10, 10)))
+
+
+def test_texture_and_camera_bad_input():
+    from camkit.render import default_camera, render_texture
+
+    tex = np.zeros((8, 8))
+    with pytest.raises(ParameterError, match=r"size: expected \(width, height\)"):
+        render_texture(PIN, Pose.identity(), tex, (0.2, -1.0))
+    with pytest.raises(ParameterError, match=r"size: expected \(width, height\)"):
+        render_texture(PIN, Pose.identity(), tex, (0.2,))
+    with pytest.raises(ValueError, match="texture: expected a NumPy array"):
+        render_texture(PIN, Pose.identity(), [[0, 1]], (0.2, 0.2))
+    with pytest.raises(ParameterError, match="cam_from_target: expected a Pose"):
+        render_texture(PIN, np.eye(4), tex, (0.2, 0.2))
+    with pytest.raises(ParameterError, match="model: expected 'pinhole'"):
+        default_camera("fisheye")
