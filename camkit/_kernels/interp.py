@@ -1,6 +1,7 @@
 """Interpolation weights and border handling shared by remap, warps and resize.
 
-Methods (internal codes): 0 nearest, 1 bilinear, 2 bicubic (Keys, parameter a), 3 Lanczos-3.
+Methods (internal codes): 0 nearest, 1 bilinear, 2 bicubic (Keys, parameter a; its weights are
+closed-form polynomials in camkit._kernels.remap.taps4), 3 Lanczos-3.
 Borders: 0 constant, 1 replicate, 2 reflect (half-sample symmetric: ...c b a | a b c...).
 Pixel centres are at integer coordinates.
 """
@@ -10,17 +11,6 @@ from __future__ import annotations
 import math
 
 from numba import njit
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def keys(t: float, a: float) -> float:  # pragma: no cover - numba
-    """Keys' cubic convolution kernel (R. Keys, IEEE TASSP 29(6), 1981, doi:10.1109/TASSP.1981.1163711)."""
-    t = abs(t)
-    if t <= 1.0:
-        return ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0
-    if t < 2.0:
-        return ((a * t - 5.0 * a) * t + 8.0 * a) * t - 4.0 * a
-    return 0.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
