@@ -1,6 +1,6 @@
 """Calibration: targets, homographies, Zhang's closed form and nonlinear refinement."""
 
-from camkit.calib.calibrate import DEFAULT_FIX, CalibrationResult, calibrate
+from camkit.calib.calibrate import DEFAULT_FIX, CalibrationResult, calibrate, calibrate_images, default_fix
 from camkit.calib.detect import CornerDetection, detect_corners
 from camkit.calib.homography import find_homography
 from camkit.calib.pnp import PnPResult, solve_pnp
@@ -14,6 +14,8 @@ __all__ = [
     "CornerDetection",
     "PnPResult",
     "calibrate",
+    "calibrate_images",
+    "default_fix",
     "detect_corners",
     "find_homography",
     "intrinsics_from_homographies",

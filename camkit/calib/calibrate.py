@@ -16,11 +16,18 @@ from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens.base import CameraModel, get_model
 
-__all__ = ["CalibrationResult", "calibrate"]
+__all__ = ["DEFAULT_FIX", "CalibrationResult", "calibrate", "calibrate_images", "default_fix"]
 
-#: Held at their start values unless named in ``free``: skew, and the Brown-Conrady terms
-#: beyond k1, k2, p1, p2, k3 (OpenCV's default 5-coefficient model).
+#: Held at their start values by default for Brown-Conrady: skew, and the terms beyond k1, k2,
+#: p1, p2, k3 (OpenCV's default 5-coefficient model).
 DEFAULT_FIX = ("skew", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
+
+
+def default_fix(model: str) -> tuple[str, ...]:
+    """The parameters ``calibrate`` holds when ``fix`` is not given: :data:`DEFAULT_FIX` for
+    Brown-Conrady, skew alone for the others (Kannala-Brandt fits k1..k4, as OpenCV's fisheye
+    module does)."""
+    return DEFAULT_FIX if get_model(model).name == "brown-conrady" else ("skew",)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -46,6 +53,14 @@ class CalibrationResult:
     stddev : dict
         Standard deviation per free parameter.
     rejected : list of (view, index, reason)
+        Corners left out as outliers; ``view`` indexes the input views.
+    view_indices : tuple of int
+        For each entry of ``poses``, ``view_rms_px`` and ``residuals``, the index of its view
+        in the input (views with fewer than 4 corners, or where no board was found, are left
+        out and listed in ``rejected_views``).
+    rejected_views : list of (view, reason)
+    detections : list of CornerDetection or None
+        With :func:`calibrate_images`, the detection of every input image.
     converged : bool
     iterations : int
     cost : float
@@ -63,6 +78,9 @@ class CalibrationResult:
     covariance: np.ndarray
     stddev: dict[str, float]
     rejected: list[tuple[int, int, str]] = field(default_factory=list)
+    view_indices: tuple[int, ...] = ()
+    rejected_views: list[tuple[int, str]] = field(default_factory=list)
+    detections: list[Any] | None = None
     converged: bool = False
     iterations: int = 0
     cost: float = float("nan")
@@ -102,15 +120,19 @@ def _skew(v: np.ndarray) -> np.ndarray:
 
 
 def calibrate(object_points: Any, image_points: Any, *, width: int, height: int, model: str = "brown-conrady",
-              fix: tuple[str, ...] = DEFAULT_FIX, robust_loss: str | None = None, robust_scale_px: float = 1.0,
+              fix: tuple[str, ...] | None = None, robust_loss: str | None = None, robust_scale_px: float = 1.0,
               reject_sigma: float | None = 5.0, max_iterations: int = 200) -> CalibrationResult:
     """Calibrate a camera from views of a planar target.
 
     Layers: a homography per view (normalised DLT), Zhang's closed form for K and the poses,
-    a linear start for k1, k2 (Zhang 2000, sec. 3.3), then Levenberg-Marquardt over the free
+    a linear start for k1, k2 (Zhang 2000, sec. 3.3); for Kannala-Brandt instead the
+    equidistant projection ``r = f theta`` (J. Kannala and S. Brandt, IEEE TPAMI 28(8), 2006,
+    sec. 3.2: its initialisation), f chosen as the one under which every view's corners lie
+    on a plane. Then Levenberg-Marquardt over the free
     model parameters and every pose (rotations updated multiplicatively), with the lens
     models' analytic Jacobians. Parameters named in ``fix`` (names or groups such as
-    ``"tangential"``) keep their start value (0 for distortion). ``robust_loss`` ("huber" or
+    ``"tangential"``) keep their start value (0 for distortion); ``None`` means
+    :func:`default_fix` of the model. ``robust_loss`` ("huber" or
     "cauchy", scale ``robust_scale_px``) reweights residuals; corners whose residual exceeds
     ``reject_sigma`` robust standard deviations are rejected with the reason recorded, and the
     fit repeated once.
@@ -136,25 +158,38 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     w = as_positive_int(width, "width")
     h = as_positive_int(height, "height")
     cls = get_model(model)
+    if fix is None:
+        fix = default_fix(model)
+    if isinstance(fix, str) or not all(isinstance(f, str) for f in fix):
+        raise ParameterError(f"fix: expected a tuple of parameter or group names, got {fix!r}")
+    unknown = [f for f in fix if f not in cls.param_names and f not in cls.param_groups
+               and f not in DEFAULT_FIX]
+    if unknown:
+        raise ParameterError(f"fix: {unknown} are not parameters of {cls.name!r}; expected names from "
+                             f"{cls.param_names} or groups {tuple(cls.param_groups)}")
     if robust_loss is not None:
         check_choice(robust_loss, ("huber", "cauchy"), "robust_loss")
     scale = as_positive_float(robust_scale_px, "robust_scale_px")
     fixed = set(cls.param_indices(tuple(f for f in fix if f in cls.param_names or f in cls.param_groups)))
     free = [i for i in range(len(cls.param_names)) if i not in fixed]
     # Closed-form start (pinhole part), from views with >= 4 seen points.
-    Hs, keep = [], []
-    for o, p in zip(objs, imgs, strict=True):
-        ok = np.isfinite(p).all(axis=1)
-        if ok.sum() >= 4:
-            Hs.append(find_homography(o[ok, :2], p[ok]))
-            keep.append(True)
-        else:
-            keep.append(False)
+    keep = [int(np.isfinite(p).all(axis=1).sum()) >= 4 for p in imgs]
+    rejected_views = [(i, f"only {int(np.isfinite(p).all(axis=1).sum())} corners (4 needed)")
+                      for i, (p, k) in enumerate(zip(imgs, keep, strict=True)) if not k]
     if sum(keep) < (2 if "skew" not in {cls.param_names[i] for i in free} else 3):
         raise EstimationError(f"views: only {sum(keep)} views have 4 or more corners; calibration needs at least "
                               "3 (2 with skew held at 0) views of the board in different orientations")
-    K = intrinsics_from_homographies(Hs, zero_skew=0 not in [i for i in free if cls.param_names[i] == "skew"])
-    start_poses = poses_from_homographies(K, Hs)
+    kept_objs = [o for o, k in zip(objs, keep, strict=True) if k]
+    kept_imgs = [p for p, k in zip(imgs, keep, strict=True) if k]
+    if cls.name == "kannala-brandt":
+        K, start_poses = _equidistant_start(kept_objs, kept_imgs, w, h)
+    else:
+        Hs = []
+        for o, p in zip(kept_objs, kept_imgs, strict=True):
+            ok = np.isfinite(p).all(axis=1)
+            Hs.append(find_homography(o[ok, :2], p[ok]))
+        K = intrinsics_from_homographies(Hs, zero_skew=0 not in [i for i in free if cls.param_names[i] == "skew"])
+        start_poses = poses_from_homographies(K, Hs)
     normals = np.array([p.R[:, 2] for p in start_poses])
     spread = np.degrees(np.arccos(np.clip(np.abs(normals @ normals.T), -1, 1))).max()
     if spread < 5.0:
@@ -198,7 +233,7 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
                 changed = True
         if not changed:
             break
-    return _result(cam, objs, imgs, poses, views, mask, free, info, rejected)
+    return _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views)
 
 
 def _residual(cam: CameraModel, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
@@ -356,7 +391,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
                       "cov_unit": cov_unit, "n_params": n_params}
 
 
-def _result(cam, objs, imgs, poses, views, mask, free, info, rejected) -> CalibrationResult:
+def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views) -> CalibrationResult:
     residuals = [np.full_like(imgs[i], np.nan) for i in range(len(imgs))]
     all_r = []
     view_rms = np.full(len(imgs), np.nan)
@@ -377,4 +412,116 @@ def _result(cam, objs, imgs, poses, views, mask, free, info, rejected) -> Calibr
         std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms[views],
         residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
         stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,
+        view_indices=tuple(views), rejected_views=rejected_views,
         converged=info["converged"], iterations=info["iterations"], cost=info["cost"], message=info["message"])
+
+
+def _equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int,
+                       height: int) -> tuple[np.ndarray, list[Pose]]:
+    """K and poses for a fisheye lens from the equidistant model ``r = f theta`` about the
+    image centre: for a trial f each pixel becomes a ray, rays within 80 degrees of the axis a
+    point on the normalised plane, and a homography per view is fitted to them; the f whose
+    homographies explain the rays best (smallest median angle) wins, on a grid of 41 field
+    angles for the farthest corner, 15-175 degrees, then refined on a finer grid."""
+    c = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+    r_max = max(float(np.nanmax(np.hypot(*(p - c).T))) for p in imgs)
+
+    def fit(f: float) -> tuple[float, list[np.ndarray]]:
+        errs, Hs = [], []
+        for o, p in zip(objs, imgs, strict=True):
+            d = p - c
+            r = np.hypot(d[:, 0], d[:, 1])
+            theta = r / f
+            ok = np.isfinite(r) & (theta < np.radians(80.0))
+            if ok.sum() < 4:
+                return np.inf, []
+            scale = np.tan(theta[ok]) / np.maximum(r[ok], 1e-12)
+            xn = d[ok] * scale[:, None]
+            try:
+                H = find_homography(o[ok, :2], xn, refine=False)
+            except EstimationError:
+                return np.inf, []
+            q = np.c_[o[ok, :2], np.ones(ok.sum())] @ H.T
+            ray_h = q / np.linalg.norm(q, axis=1, keepdims=True) * np.sign(q[:, 2:3])
+            ray_o = np.c_[np.sin(theta[ok])[:, None] * d[ok] / np.maximum(r[ok], 1e-12)[:, None],
+                          np.cos(theta[ok])]
+            errs.append(np.arccos(np.clip((ray_h * ray_o).sum(axis=1), -1.0, 1.0)))
+            Hs.append(H)
+        return float(np.median(np.concatenate(errs))), Hs
+
+    grid = r_max / np.radians(np.linspace(15.0, 175.0, 41))
+    scores = [fit(f)[0] for f in grid]
+    k = int(np.argmin(scores))
+    if not np.isfinite(scores[k]):
+        raise EstimationError("start: no focal length explains the corners as views of a plane through a fisheye "
+                              "lens; check the object points' units and the image points' order")
+    lo, hi = grid[min(k + 1, len(grid) - 1)], grid[max(k - 1, 0)]
+    fine = np.linspace(lo, hi, 11)
+    f = float(fine[int(np.argmin([fit(v)[0] for v in fine]))])
+    _, Hs = fit(f)
+    K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
+    return K, poses_from_homographies(K, [K @ H for H in Hs])
+
+
+def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", fix: tuple[str, ...] | None = None,
+                     robust_loss: str | None = None, reject_sigma: float | None = 5.0,
+                     progress: Any = None) -> CalibrationResult:
+    """Detect the board in each image and calibrate from the corners found.
+
+    Parameters
+    ----------
+    images : sequence of arrays or paths
+        Images as arrays (grey, RGB, 8 or 16 bit) or files :func:`camkit.io.read_image` reads;
+        all of the same size.
+    board : Checkerboard
+    model, fix, robust_loss, reject_sigma
+        As for :func:`calibrate`.
+    progress : callable(done, total) or None
+        Called after each image is detected.
+
+    Returns
+    -------
+    CalibrationResult
+        With ``detections`` (one per image, in input order); images where no board was found
+        are in ``rejected_views`` with the detector's reason.
+    """
+    import os
+
+    from camkit.calib.detect import detect_corners
+    from camkit.calib.targets import Checkerboard
+    from camkit.io.images import read_image
+
+    if not isinstance(board, Checkerboard):
+        raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
+    if isinstance(images, np.ndarray | str | os.PathLike) or not hasattr(images, "__len__"):
+        raise ShapeError("images: expected a sequence (list) of images or paths, one per view, got "
+                         f"{type(images).__name__}")
+    if len(images) == 0:
+        raise EstimationError("images: no images given; calibration needs 3 or more views of the board")
+    detections, size = [], None
+    for k, item in enumerate(images):
+        img = read_image(item) if isinstance(item, str | os.PathLike) else item
+        if not isinstance(img, np.ndarray):
+            raise ShapeError(f"images[{k}]: expected an image array or a path, got {type(item).__name__}")
+        if size is None:
+            size = img.shape[:2]
+        elif img.shape[:2] != size:
+            raise ShapeError(f"images[{k}]: expected the size of the first image, {size[1]}x{size[0]}, "
+                             f"got {img.shape[1]}x{img.shape[0]}; one calibration is for one camera mode")
+        detections.append(detect_corners(img, board))
+        if progress is not None:
+            progress(k + 1, len(images))
+    found = [d for d in detections if d.found]
+    if len(found) < 2:
+        raise EstimationError(f"images: the board was found in {len(found)} of {len(images)} images; check the "
+                              f"board size (inner corners {board.inner_cols}x{board.inner_rows}, not squares) and "
+                              "that the whole board is in the photos")
+    obj = board.object_points()
+    result = calibrate([obj] * len(detections), [d.corners for d in detections], width=size[1], height=size[0],
+                       model=model, fix=fix, robust_loss=robust_loss, reject_sigma=reject_sigma)
+    reasons = {i: r for i, r in result.rejected_views}
+    rejected_views = [(i, reasons[i] if d.found else f"board not found: {d.message}")
+                      for i, d in enumerate(detections) if i in reasons]
+    from dataclasses import replace
+
+    return replace(result, rejected_views=rejected_views, detections=detections)

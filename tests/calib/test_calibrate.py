@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard, calibrate, find_homography
+from camkit.calib import DEFAULT_FIX, Checkerboard, calibrate, calibrate_images, default_fix, find_homography
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry import Pose
-from camkit.render import default_camera, plan_views
+from camkit.lens import KannalaBrandt
+from camkit.render import default_camera, plan_views, render_checkerboard
 
 BOARD = Checkerboard(9, 6, 0.03)
 OBJ = BOARD.object_points()
@@ -109,3 +110,52 @@ def test_homography_needs_four_points_and_matching_shapes():
         find_homography(np.zeros((5, 2)), np.zeros((6, 2)))
     with pytest.raises(EstimationError, match="all points coincide"):
         find_homography(np.ones((5, 2)), np.random.default_rng(0).uniform(size=(5, 2)))
+
+
+@pytest.mark.parametrize("f", [400.0, 250.0])
+def test_fisheye_from_the_equidistant_start(f):
+    # Up to 84 degrees off axis at f = 250 px: a pinhole homography cannot describe these views.
+    cam = KannalaBrandt(fx=f, fy=f * 1.0005, cx=641.3, cy=478.2, k1=0.02, k2=-0.005, k3=0.001, k4=-0.0002,
+                        width=1280, height=960)
+    rng = np.random.default_rng(11)
+    poses = plan_views(cam, BOARD, 15, rng, fill=(0.3, 0.5))
+    imgs = [cam.project(p.apply(OBJ)) + rng.normal(0, 0.1, (len(OBJ), 2)) for p in poses]
+    res = calibrate([OBJ] * 15, imgs, width=1280, height=960, model="kannala-brandt")
+    assert res.converged and res.rms_px < 0.12
+    assert default_fix("kannala-brandt") == ("skew",) and "k4" in res.free_params
+    for name in ("fx", "fy", "cx", "cy"):
+        assert abs(getattr(res.model, name) - getattr(cam, name)) < 4 * res.stddev[name] + 1e-3, name
+
+
+def test_fix_names_are_checked_and_short_views_are_reported():
+    _, imgs = _views(8)
+    with pytest.raises(ParameterError, match=r"fix: \['k9'\] are not parameters of 'brown-conrady'"):
+        calibrate([OBJ] * 15, imgs, width=1280, height=960, fix=("k9",))
+    with pytest.raises(ParameterError, match="fix: expected a tuple"):
+        calibrate([OBJ] * 15, imgs, width=1280, height=960, fix="skew")
+    assert default_fix("brown-conrady") == DEFAULT_FIX
+    imgs[4][3:] = np.nan  # 3 corners left: the view is left out, and said so
+    res = calibrate([OBJ] * 15, imgs, width=1280, height=960)
+    assert res.view_indices == (0, 1, 2, 3, *range(5, 15)) and len(res.poses) == 14
+    assert res.rejected_views == [(4, "only 3 corners (4 needed)")]
+
+
+def test_calibrate_images_reports_images_without_a_board():
+    rng = np.random.default_rng(12)
+    cam = default_camera("pinhole").replace(width=640, height=480, cx=320.0, cy=240.0, fx=500.0, fy=500.0)
+    images = [render_checkerboard(cam, p, BOARD)[0] for p in plan_views(cam, BOARD, 5, rng)]
+    images.insert(2, np.full((480, 640), 128, np.uint8))
+    done = []
+    res = calibrate_images(images, BOARD, model="pinhole", progress=lambda k, n: done.append((k, n)))
+    assert done[-1] == (6, 6) and len(res.detections) == 6
+    assert res.view_indices == (0, 1, 3, 4, 5)
+    assert res.rejected_views[0][0] == 2 and res.rejected_views[0][1].startswith("board not found")
+    assert abs(res.model.fx - 500.0) < 0.5
+    with pytest.raises(ShapeError, match=r"images\[1\]: expected the size of the first image"):
+        calibrate_images([images[0], images[0][:100]], BOARD)
+    with pytest.raises(EstimationError, match="found in 0 of 2 images"):
+        calibrate_images([images[2], images[2]], BOARD)
+    with pytest.raises(ShapeError, match="images: expected a sequence"):
+        calibrate_images(images[0], BOARD)
+    with pytest.raises(ParameterError, match="board: expected a Checkerboard"):
+        calibrate_images(images, (9, 6))
