@@ -61,6 +61,8 @@ class CalibrationResult:
     rejected_views : list of (view, reason)
     detections : list of CornerDetection or None
         With :func:`calibrate_images`, the detection of every input image.
+    object_points, image_points : list of ndarray
+        The input, per input view.
     converged : bool
     iterations : int
     cost : float
@@ -81,6 +83,8 @@ class CalibrationResult:
     view_indices: tuple[int, ...] = ()
     rejected_views: list[tuple[int, str]] = field(default_factory=list)
     detections: list[Any] | None = None
+    object_points: list[np.ndarray] = field(default_factory=list)
+    image_points: list[np.ndarray] = field(default_factory=list)
     converged: bool = False
     iterations: int = 0
     cost: float = float("nan")
@@ -412,7 +416,7 @@ def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_
         std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms[views],
         residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
         stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,
-        view_indices=tuple(views), rejected_views=rejected_views,
+        view_indices=tuple(views), rejected_views=rejected_views, object_points=objs, image_points=imgs,
         converged=info["converged"], iterations=info["iterations"], cost=info["cost"], message=info["message"])
 
 

@@ -5,35 +5,221 @@ from __future__ import annotations
 import argparse
 import sys
 from collections.abc import Sequence
+from typing import ClassVar
 
 import numpy as np
 
 from camkit import __version__
-from camkit.errors import CamkitError
+from camkit.errors import CamkitError, ParameterError
 
 __all__ = ["main"]
 
 
-def _cmd_demo(args: argparse.Namespace) -> int:
-    from camkit.demo import run_demo
+def _console():
+    from rich.console import Console
 
-    r = run_demo()
-    cam = r.camera
-    fov = cam.fov_deg()
-    print("camkit demo: a 9x6 checkerboard (30 mm squares) seen by a 6 mm lens on a 3.45 um sensor")
-    print(f"  camera   {cam.width}x{cam.height} px, fx={cam.fx:.2f} fy={cam.fy:.2f} "
-          f"cx={cam.cx:.2f} cy={cam.cy:.2f}")
-    print(f"  view     {fov.horizontal_deg:.2f} x {fov.vertical_deg:.2f} deg "
-          f"(diagonal {fov.diagonal_deg:.2f} deg)")
-    ypr = np.degrees(r.cam_from_board.inverse().ypr())
-    print(f"  pose     board origin at z = {r.cam_from_board.t[2]:.3f} m; camera yaw/pitch/roll "
-          f"{ypr[0]:.2f}/{ypr[1]:.2f}/{ypr[2]:.2f} deg relative to the board")
-    lo, hi = r.pixels.min(axis=0), r.pixels.max(axis=0)
-    print(f"  pixels   {len(r.pixels)} corners projected, x in [{lo[0]:.1f}, {hi[0]:.1f}], "
-          f"y in [{lo[1]:.1f}, {hi[1]:.1f}]")
-    print(f"  checks   project/unproject round trip {r.round_trip_error_px:.2e} px; "
-          f"P = K[R|t] decomposition {r.decomposition_error:.2e}")
+    return Console(highlight=False)
+
+
+class _Progress:
+    """A rich progress bar per pipeline stage (render, detect, undistort...)."""
+
+    LABELS: ClassVar[dict[str, str]] = {"render": "rendering views", "detect": "detecting corners",
+                                        "undistort": "undistorting"}
+
+    def __init__(self, console) -> None:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+        self.progress = Progress(TextColumn("{task.description:<20}"), BarColumn(), MofNCompleteColumn(),
+                                 TimeElapsedColumn(), console=console, transient=False)
+        self.tasks: dict[str, int] = {}
+
+    def __enter__(self):
+        self.progress.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.progress.__exit__(*exc)
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if stage not in self.LABELS:
+            return
+        if stage not in self.tasks:
+            self.tasks[stage] = self.progress.add_task(self.LABELS[stage], total=total)
+        self.progress.update(self.tasks[stage], completed=done)
+
+
+def _param_table(result, truth=None, title="Camera"):
+    from rich.table import Table
+
+    table = Table(title=title, title_justify="left")
+    table.add_column("parameter")
+    table.add_column("estimate", justify="right")
+    table.add_column("1 sigma", justify="right")
+    if truth is not None:
+        table.add_column("true", justify="right")
+        table.add_column("error / sigma", justify="right")
+    for name in result.model.param_names:
+        if name not in result.stddev:
+            continue
+        v, sd = getattr(result.model, name), result.stddev[name]
+        row = [name, f"{v:.6g}", f"{sd:.2g}"]
+        if truth is not None:
+            t = getattr(truth, name)
+            row += [f"{t:.6g}", f"{(v - t) / sd:+.1f}" if sd > 0 else ""]
+        table.add_row(*row)
+    return table
+
+
+def _view_table(job):
+    from rich.table import Table
+
+    r = job.result
+    pos = {v: k for k, v in enumerate(r.view_indices)}
+    reasons = dict(r.rejected_views)
+    table = Table(title="Views", title_justify="left")
+    for col, just in (("image", "left"), ("corners", "right"), ("RMS px", "right"), ("camera yaw/pitch/roll deg",
+                                                                                     "right")):
+        table.add_column(col, justify=just)
+    ypr = r.view_ypr_deg()
+    for i, name in enumerate(job.image_names):
+        det = r.detections[i] if r.detections is not None else None
+        n = str(det.n_found) if det is not None else ""
+        if i in pos:
+            k = pos[i]
+            table.add_row(name, n, f"{r.view_rms_px[k]:.3f}", "{:+.1f} / {:+.1f} / {:+.1f}".format(*ypr[k]))
+        else:
+            table.add_row(name, n, "[red]not used[/red]", reasons.get(i, ""))
+    return table
+
+
+def _summary(console, job) -> None:
+    r = job.result
+    console.print(f"{len(r.view_indices)} of {len(job.image_names)} views used; RMS {r.rms_px:.3f} px; "
+                  f"residual std {r.std_px[0]:.3f} / {r.std_px[1]:.3f} px (x / y); "
+                  f"{len(r.rejected)} corners rejected as outliers; {r.message}")
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    import time
+
+    from camkit.demo import DEMO_BOARD, run_demo
+
+    console = _console()
+    t0 = time.perf_counter()
+    console.print(f"camkit demo: {args.views} simulated views of a {DEMO_BOARD.inner_cols}x{DEMO_BOARD.inner_rows} "
+                  f"board (30 mm squares) through a 1280x960 camera with barrel distortion, defocus, sensor noise "
+                  "and a Bayer mosaic; then calibration as `camkit calibrate` does it")
+    with _Progress(console) as progress:
+        r = run_demo(args.output, views=args.views, seed=args.seed, progress=progress)
+    job = r.job
+    console.print(_view_table(job))
+    console.print(_param_table(job.result, r.truth, title="Estimated and true parameters"))
+    _summary(console, job)
+    console.print(f"images:  {r.image_dir}")
+    console.print(f"camera:  {job.camera_file}")
+    console.print(f"results: {job.results_file}")
+    console.print(f"[bold]report:  {job.report_file}[/bold]  (open it in a browser)")
+    console.print(f"done in {time.perf_counter() - t0:.1f} s")
     return 0
+
+
+def _cmd_calibrate(args: argparse.Namespace) -> int:
+    from camkit.calib import Checkerboard
+    from camkit.pipeline import calibrate_files
+
+    console = _console()
+    board = Checkerboard(*args.board, args.square)
+    console.print(f"camkit calibrate: {len(args.images)} images, board {args.board[0]}x{args.board[1]} inner "
+                  f"corners, {args.square * 1000:g} mm squares, model {args.model}")
+    with _Progress(console) as progress:
+        job = calibrate_files(args.images, board, model=args.model, camera_file=args.output,
+                              results_file=args.json, report_file=args.report, progress=progress)
+    console.print(_view_table(job))
+    console.print(_param_table(job.result))
+    _summary(console, job)
+    for label, path in (("camera", job.camera_file), ("results", job.results_file), ("report", job.report_file)):
+        if path is not None:
+            console.print(f"{label + ':':<9}{path}")
+    return 0
+
+
+def _cmd_board(args: argparse.Namespace) -> int:
+    from camkit.calib import Checkerboard
+    from camkit.calib.board_file import write_board
+
+    board = Checkerboard(*args.inner, args.square, margin=args.margin)
+    path = write_board(args.output, board, dpi=args.dpi)
+    u0, v0, u1, v1 = board.extent()
+    print(f"wrote {path}: {args.inner[0]}x{args.inner[1]} inner corners ({args.inner[0] + 1}x{args.inner[1] + 1} "
+          f"squares of {args.square * 1000:g} mm), sheet {(u1 - u0) * 1000:g} x {(v1 - v0) * 1000:g} mm. "
+          "Print at 100 % (actual size) and measure a square.")
+    return 0
+
+
+def _cmd_undistort(args: argparse.Namespace) -> int:
+    from pathlib import Path
+
+    from camkit.io import load_camera, read_image, write_png
+    from camkit.resample import optimal_pinhole, undistort_image
+
+    console = _console()
+    model = load_camera(args.camera)
+    out = Path(args.output)
+    out.mkdir(parents=True, exist_ok=True)
+    inputs = {Path(p).resolve() for p in args.images}
+    new = optimal_pinhole(model, args.alpha)
+    targets = [out / (Path(p).stem + ".png") for p in args.images]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
+    for t in targets:
+        if t.resolve() in inputs:
+            raise ParameterError(f"-o: {t} is one of the input images; camkit never overwrites an input")
+    with _Progress(console) as progress:
+        for k, (src, dst) in enumerate(zip(args.images, targets, strict=True)):
+            img = read_image(src)
+            if img.shape[1] != model.width or img.shape[0] != model.height:
+                raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
+                                     f"{img.shape[1]}x{img.shape[0]}")
+            write_png(dst, undistort_image(img, model, new, interpolation=args.interpolation))
+            progress("undistort", k + 1, len(targets))
+    console.print(f"wrote {len(targets)} images to {out}; the undistorted camera is a pinhole with fx={new.fx:.2f} "
+                  f"fy={new.fy:.2f} cx={new.cx:.2f} cy={new.cy:.2f} ({new.width}x{new.height})")
+    return 0
+
+
+def _cmd_lens(args: argparse.Namespace) -> int:
+    from camkit import optics
+
+    f = args.focal_length
+    if args.lens_command == "dof":
+        near, far = optics.depth_of_field(f, args.f_number, args.focus, args.coc)
+        hyper = optics.hyperfocal_distance(f, args.f_number, args.coc)
+        far_txt = "infinity" if not np.isfinite(far) else f"{far:.4g} m"
+        print(f"{f * 1000:g} mm at f/{args.f_number:g} focused at {args.focus:g} m, circle of confusion "
+              f"{args.coc * 1000:g} mm:")
+        print(f"  near {near:.4g} m, far {far_txt}, depth of field "
+              f"{'infinite' if not np.isfinite(far) else f'{far - near:.4g} m'}")
+        print(f"  hyperfocal distance {hyper:.4g} m")
+    elif args.lens_command == "fov":
+        w, h = args.sensor
+        d = float(np.hypot(w, h))
+        fov = [optics.field_of_view_deg(x, f) for x in (w, h, d)]
+        print(f"{f * 1000:g} mm on a {w * 1000:g} x {h * 1000:g} mm sensor: horizontal {fov[0]:.2f} deg, "
+              f"vertical {fov[1]:.2f} deg, diagonal {fov[2]:.2f} deg (full angles, 2 atan(d / 2f))")
+    else:
+        ev = optics.exposure_value(args.f_number, args.time, args.iso)
+        print(f"f/{args.f_number:g}, {_fmt_time(args.time)}, ISO {args.iso:g}: EV {ev:.2f}")
+        print("  the same exposure:")
+        for stops in (-2, -1, 1, 2):
+            n = args.f_number * 2 ** (stops / 2)
+            t = float(optics.equivalent_exposure(args.f_number, args.time, new_f_number=n))
+            print(f"    f/{n:.3g} at {_fmt_time(t)}")
+    return 0
+
+
+def _fmt_time(t: float) -> str:
+    return f"1/{1 / t:.4g} s" if t < 1 else f"{t:g} s"
 
 
 def _board_size(text: str) -> tuple[int, int]:
@@ -59,6 +245,27 @@ def _length_m(text: str) -> float:
         raise argparse.ArgumentTypeError(f"expected a length such as 30mm or 0.03, got {text!r}") from None
     if not value > 0:
         raise argparse.ArgumentTypeError(f"expected a positive length, got {text!r}")
+    return value
+
+
+def _sensor_size(text: str) -> tuple[float, float]:
+    try:
+        w, h = (float(v) / 1000.0 for v in text.lower().removesuffix("mm").split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a sensor size WxH in mm (e.g. 36x24), got {text!r}") from None
+    if not (w > 0 and h > 0):
+        raise argparse.ArgumentTypeError(f"expected a positive sensor size, got {text!r}")
+    return w, h
+
+
+def _seconds(text: str) -> float:
+    try:
+        num, _, den = text.strip().removesuffix("s").partition("/")
+        value = float(num) / (float(den) if den else 1.0)
+    except (ValueError, ZeroDivisionError):
+        raise argparse.ArgumentTypeError(f"expected a time such as 1/125 or 0.008, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive time, got {text!r}")
     return value
 
 
@@ -98,8 +305,56 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="camkit", description="The whole camera in one library.")
     parser.add_argument("--version", action="version", version=f"camkit {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    demo = sub.add_parser("demo", help="run the built-in demonstration on a simulated camera")
+    demo = sub.add_parser("demo", help="simulate a camera, calibrate it and write a report (the whole pipeline)")
+    demo.add_argument("-o", "--output", default="camkit-demo", help="output folder (default ./camkit-demo)")
+    demo.add_argument("--views", type=int, default=15, help="number of simulated views (default 15)")
+    demo.add_argument("--seed", type=int, default=0, help="random seed of the simulation (default 0)")
     demo.set_defaults(func=_cmd_demo)
+
+    cal = sub.add_parser("calibrate", help="calibrate a camera from photos of a checkerboard")
+    cal.add_argument("images", nargs="+", metavar="IMAGES", help="PNG, TIFF or PGM/PPM files")
+    cal.add_argument("--board", type=_board_size, required=True, help="inner corners COLSxROWS, e.g. 9x6")
+    cal.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
+    cal.add_argument("--model", default="brown-conrady", choices=("pinhole", "brown-conrady", "kannala-brandt"),
+                     help="lens model (kannala-brandt for fisheye lenses)")
+    cal.add_argument("-o", "--output", default="camera.json", help="camera file to write (default camera.json)")
+    cal.add_argument("--json", metavar="RESULTS", help="also write the results (residuals, sigmas, views) here")
+    cal.add_argument("--report", metavar="HTML", help="also write an HTML report here")
+    cal.set_defaults(func=_cmd_calibrate)
+
+    brd = sub.add_parser("board", help="write a printable checkerboard (pdf, svg or png) at exact scale")
+    brd.add_argument("--inner", type=_board_size, required=True, help="inner corners COLSxROWS, e.g. 9x6")
+    brd.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
+    brd.add_argument("--margin", type=_length_m, help="white margin (default one square)")
+    brd.add_argument("--dpi", type=int, default=300, help="pixels per inch for .png (default 300)")
+    brd.add_argument("-o", "--output", required=True, help="board.pdf, board.svg or board.png")
+    brd.set_defaults(func=_cmd_board)
+
+    und = sub.add_parser("undistort", help="remove lens distortion from images")
+    und.add_argument("camera", metavar="CAMERA.json", help="a camera file from camkit calibrate")
+    und.add_argument("images", nargs="+", metavar="IMAGES")
+    und.add_argument("-o", "--output", required=True, help="output folder (inputs are never overwritten)")
+    und.add_argument("--alpha", type=float, default=0.0,
+                     help="0: crop to valid pixels (default); 1: keep every source pixel")
+    und.add_argument("--interpolation", default="bicubic", choices=("nearest", "bilinear", "bicubic", "lanczos3"))
+    und.set_defaults(func=_cmd_undistort)
+
+    lens = sub.add_parser("lens", help="lens calculators: depth of field, field of view, exposure")
+    lsub = lens.add_subparsers(dest="lens_command", metavar="CALCULATOR", required=True)
+    dof = lsub.add_parser("dof", help="depth of field and hyperfocal distance")
+    dof.add_argument("--focal-length", type=_length_m, required=True, help="e.g. 50mm")
+    dof.add_argument("--f-number", type=float, required=True, help="e.g. 2.8")
+    dof.add_argument("--focus", type=_length_m, required=True, help="focus distance, e.g. 3m")
+    dof.add_argument("--coc", type=_length_m, default=0.00003, help="circle of confusion (default 0.03mm)")
+    fov = lsub.add_parser("fov", help="field of view")
+    fov.add_argument("--focal-length", type=_length_m, required=True, help="e.g. 50mm")
+    fov.add_argument("--sensor", type=_sensor_size, default=(0.036, 0.024), help="WxH in mm (default 36x24)")
+    exp = lsub.add_parser("exposure", help="exposure value and equivalent exposures")
+    exp.add_argument("--f-number", type=float, required=True)
+    exp.add_argument("--time", type=_seconds, required=True, help="exposure time, e.g. 1/125 or 0.008")
+    exp.add_argument("--iso", type=float, default=100.0)
+    exp.set_defaults(focal_length=None)
+    lens.set_defaults(func=_cmd_lens)
 
     sim = sub.add_parser("simulate", help="render a calibration dataset with exact ground truth")
     sim.add_argument("--views", type=int, default=15, help="number of views (default 15)")
