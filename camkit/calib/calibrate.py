@@ -177,9 +177,14 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     fixed = set(cls.param_indices(tuple(f for f in fix if f in cls.param_names or f in cls.param_groups)))
     free = [i for i in range(len(cls.param_names)) if i not in fixed]
     # Closed-form start (pinhole part), from views with >= 4 seen points.
-    keep = [int(np.isfinite(p).all(axis=1).sum()) >= 4 for p in imgs]
-    rejected_views = [(i, f"only {int(np.isfinite(p).all(axis=1).sum())} corners (4 needed)")
-                      for i, (p, k) in enumerate(zip(imgs, keep, strict=True)) if not k]
+    keep, rejected_views = [], []
+    for i, (o, p) in enumerate(zip(objs, imgs, strict=True)):
+        seen = np.isfinite(p).all(axis=1)
+        if seen.sum() < 4:
+            rejected_views.append((i, f"only {int(seen.sum())} corners (4 needed)"))
+        elif _collinear(o[seen, :2]):
+            rejected_views.append((i, f"the {int(seen.sum())} corners seen lie on one line"))
+        keep.append(not rejected_views or rejected_views[-1][0] != i)
     if sum(keep) < (2 if "skew" not in {cls.param_names[i] for i in free} else 3):
         raise EstimationError(f"views: only {sum(keep)} views have 4 or more corners; calibration needs at least "
                               "3 (2 with skew held at 0) views of the board in different orientations")
@@ -238,6 +243,11 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
         if not changed:
             break
     return _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views)
+
+
+def _collinear(xy: np.ndarray) -> bool:
+    s = np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)
+    return bool(s[1] <= 1e-6 * s[0])
 
 
 def _residual(cam: CameraModel, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:

@@ -9,6 +9,8 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from camkit.errors import ParameterError
 from camkit.io._atomic import write_atomic
 from camkit.io.camera_files import _camera_dict
@@ -56,7 +58,7 @@ def results_to_dict(result: Any, image_names: Sequence[str] | None = None) -> di
                          rvec=[float(v) for v in pose.rvec], t_m=[float(v) for v in pose.t],
                          camera_ypr_deg=[float(v) for v in ypr[k]])
         else:
-            n = dets[i].n_found if dets is not None else 0
+            n = dets[i].n_found if dets is not None else int(np.isfinite(result.image_points[i]).all(axis=1).sum())
             entry.update(found=False, n_corners=int(n), rms_px=None, reason=reasons.get(i, ""))
         views.append(entry)
     return {
