@@ -289,15 +289,13 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         cfa=args.bayer,
         demosaic=None if args.demosaic == "raw" else args.demosaic,
     )
-    print(f"camkit simulate: {args.views} views of a {args.board[0]}x{args.board[1]} board "
-          f"({args.square * 1000:g} mm squares) through the built-in {camera.name} camera, seed {args.seed}")
-
-    def progress(done: int, total: int) -> None:
-        print(f"\r  rendering {done}/{total}", end="" if done < total else "\n", flush=True)
-
-    out = simulate_dataset(args.output, camera, board, args.views, seed=args.seed, effects=effects,
-                           progress=progress)
-    print(f"  wrote {args.views} images and truth.json to {out}")
+    console = _console()
+    console.print(f"camkit simulate: {args.views} views of a {args.board[0]}x{args.board[1]} board "
+                  f"({args.square * 1000:g} mm squares) through the built-in {camera.name} camera, seed {args.seed}")
+    with _Progress(console) as progress:
+        out = simulate_dataset(args.output, camera, board, args.views, seed=args.seed, effects=effects,
+                               progress=lambda done, total: progress("render", done, total))
+    console.print(f"wrote {args.views} images and truth.json to {out}")
     return 0
 
 
