@@ -115,14 +115,6 @@ def _as_views(object_points: Any, image_points: Any) -> tuple[list[np.ndarray], 
     return objs, imgs
 
 
-def _skew(v: np.ndarray) -> np.ndarray:
-    out = np.zeros((*v.shape[:-1], 3, 3))
-    out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
-    out[..., 1, 0], out[..., 1, 2] = v[..., 2], -v[..., 0]
-    out[..., 2, 0], out[..., 2, 1] = -v[..., 1], v[..., 0]
-    return out
-
-
 def calibrate(object_points: Any, image_points: Any, *, width: int, height: int, model: str = "brown-conrady",
               fix: tuple[str, ...] | None = None, robust_loss: str | None = None, robust_scale_px: float = 1.0,
               reject_sigma: float | None = 5.0, max_iterations: int = 200) -> CalibrationResult:
@@ -286,28 +278,15 @@ def _weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
     return 1.0 / (1.0 + n * n)
 
 
-def _normal_blocks(Jm, Jp, r, w, view, n_views):
+def _normal_blocks(Jm, dp, RX, r, w, view, n_views):
     """Blocks of the weighted normal equations: U (intrinsics), W (intrinsics x pose, per view),
-    V (6x6 per view), and the gradients."""
-    sw = np.sqrt(w)[:, None, None]
-    Jm, Jp, rw = Jm * sw, Jp * sw, r * sw[:, :, 0]
-    U = np.einsum("mai,maj->ij", Jm, Jm)
-    gm = np.einsum("mai,ma->i", Jm, rw)
-    # Points are stored view by view, so per-view sums are segment sums (np.add.at is ~20x
-    # slower); a view left without points by outlier rejection gets zero blocks.
-    counts = np.bincount(view, minlength=n_views)
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
+    V (6x6 per view), and the gradients (one pass of a numba kernel; a view left without
+    points by outlier rejection gets zero blocks)."""
+    from camkit._kernels.calib import normal_blocks
 
-    def per_view(x: np.ndarray) -> np.ndarray:
-        out = np.zeros((n_views, *x.shape[1:]))
-        nz = counts > 0
-        out[nz] = np.add.reduceat(x, starts[nz], axis=0)
-        return out
-
-    V = per_view(np.einsum("mai,maj->mij", Jp, Jp))
-    W = per_view(np.einsum("mai,maj->mij", Jm, Jp))
-    gp = per_view(np.einsum("mai,ma->mi", Jp, rw))
-    return U, W, V, gm, gp
+    return normal_blocks(np.ascontiguousarray(Jm), np.ascontiguousarray(dp), np.ascontiguousarray(RX),
+                         np.ascontiguousarray(r), np.ascontiguousarray(w, dtype=np.float64),
+                         np.ascontiguousarray(view, dtype=np.int64), n_views)
 
 
 def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations):
@@ -337,7 +316,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
         c = cls.from_params(p_model, width=cam.width, height=cam.height)
         RX = np.einsum("nij,nj->ni", Rs[view], obj)
         uv, dp, dk = c.project_with_jacobian(RX + ts[view])
-        return c, uv - img, dk[:, :, free], np.concatenate([dp @ -_skew(RX), dp], axis=2)
+        return c, uv - img, dk[:, :, free], (dp, RX)
 
     c, r, Jm, Jp = evaluate(p_model, Rs, ts)
     wts = _weights(r, loss, scale)
@@ -348,7 +327,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     mu = 1e-3
     converged, message, it = False, "", 0
     for it in range(1, max_iterations + 1):  # noqa: B007 - the count is reported after the loop
-        U, W, V, gm, gp = _normal_blocks(Jm, Jp, r, wts, view, n_views)
+        U, W, V, gm, gp = _normal_blocks(Jm, *Jp, r, wts, view, n_views)
         dU = np.where(np.diag(U) > 0, np.diag(U), 1.0)
         dV = np.where(np.diagonal(V, axis1=1, axis2=2) > 0, np.diagonal(V, axis1=1, axis2=2), 1.0)
         improved = False
@@ -394,7 +373,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
         message = f"stopped after {max_iterations} iterations without converging"
     # Marginal covariance of the intrinsics (unit noise): the inverse of the undamped Schur
     # complement of the (unweighted) normal equations.
-    U, W, V, _, _ = _normal_blocks(Jm, Jp, r, np.ones(len(r)), view, n_views)
+    U, W, V, _, _ = _normal_blocks(Jm, *Jp, r, np.ones(len(r)), view, n_views)
     try:
         S0 = U - np.einsum("vik,vkl,vjl->ij", W, np.linalg.inv(V), W)
         cov_unit = np.linalg.inv(S0)

@@ -58,7 +58,7 @@ def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> n
     A[1::2, 5] = 1
     A[1::2, 6:8] = -un[:, 1:2] * Xn
     A[1::2, 8] = -un[:, 1]
-    _, s, vt = np.linalg.svd(A)
+    _, s, vt = np.linalg.svd(A, full_matrices=False)
     if s[-2] < 1e-9 * s[0]:
         raise EstimationError("points: degenerate configuration (collinear points?); a homography needs "
                               "at least 4 points, no 3 of them on a line")

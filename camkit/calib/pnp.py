@@ -90,7 +90,7 @@ def solve_pnp(object_points: Any, pixels: Any, model: CameraModel, *, max_iterat
         A[0::2, 8:12] = -xn[:, :1] * Xh
         A[1::2, 4:8] = Xh
         A[1::2, 8:12] = -xn[:, 1:2] * Xh
-        P = np.linalg.svd(A)[2][-1].reshape(3, 4)
+        P = np.linalg.svd(A, full_matrices=False)[2][-1].reshape(3, 4)
         scale = np.cbrt(np.linalg.det(P[:, :3]))
         P = P / scale
         R = _nearest_rotation(P[:, :3])
