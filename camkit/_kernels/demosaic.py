@@ -99,6 +99,136 @@ def malvar(cfa: np.ndarray, code: np.ndarray, is_int: bool, hi: float,
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def bilinear_int(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """:func:`bilinear` for integer mosaics, in integer arithmetic (the same rounding: half up).
+
+    Each row is done in two passes, one per Bayer phase, over its interior columns; within a
+    pass the colour is fixed, so the loop has no branches. The first and last columns take the
+    mirrored path of :func:`bilinear`."""
+    H, W = cfa.shape
+    for y in prange(H):
+        ym = m(y - 1, H)
+        yp = m(y + 1, H)
+        for x in (0, W - 1):
+            _bilinear_px(cfa, code, y, x, ym, yp, H, W, out)
+        for phase in range(2):
+            c = code[(y & 1) * 2 + phase]
+            x0 = 2 if phase == 0 else 1
+            if c == 1:
+                rc = code[(y & 1) * 2 + 1 - phase]
+                oc = 2 - rc
+                for x in range(x0, W - 1, 2):
+                    out[y, x, 1] = cfa[y, x]
+                    out[y, x, rc] = (np.int32(cfa[y, x - 1]) + np.int32(cfa[y, x + 1]) + 1) >> 1
+                    out[y, x, oc] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + 1) >> 1
+            else:
+                oc = 2 - c
+                for x in range(x0, W - 1, 2):
+                    out[y, x, c] = cfa[y, x]
+                    out[y, x, 1] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + np.int32(cfa[y, x - 1])
+                                    + np.int32(cfa[y, x + 1]) + 2) >> 2
+                    out[y, x, oc] = (np.int32(cfa[ym, x - 1]) + np.int32(cfa[ym, x + 1]) + np.int32(cfa[yp, x - 1])
+                                     + np.int32(cfa[yp, x + 1]) + 2) >> 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bilinear_px(cfa, code, y, x, ym, yp, H, W, out) -> None:  # pragma: no cover - numba
+    c = code[(y & 1) * 2 + (x & 1)]
+    xm = m(x - 1, W)
+    xp = m(x + 1, W)
+    if c == 1:
+        rc = code[(y & 1) * 2 + ((x + 1) & 1)]
+        out[y, x, 1] = cfa[y, x]
+        out[y, x, rc] = (np.int32(cfa[y, xm]) + np.int32(cfa[y, xp]) + 1) >> 1
+        out[y, x, 2 - rc] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + 1) >> 1
+    else:
+        out[y, x, c] = cfa[y, x]
+        out[y, x, 1] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + np.int32(cfa[y, xm]) + np.int32(cfa[y, xp])
+                        + 2) >> 2
+        out[y, x, 2 - c] = (np.int32(cfa[ym, xm]) + np.int32(cfa[ym, xp]) + np.int32(cfa[yp, xm])
+                            + np.int32(cfa[yp, xp]) + 2) >> 2
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def malvar_int(cfa: np.ndarray, code: np.ndarray, hi: int, out: np.ndarray) -> None:  # pragma: no cover
+    """:func:`malvar` for integer mosaics in integer arithmetic: the filters' weights times 16
+    are integers, so ``(sum + 8) >> 4`` is the same round-half-up result as the float path.
+    Two branch-free passes per row (one per Bayer phase) over columns 2..W-3; the two columns
+    at each edge take the mirrored path."""
+    H, W = cfa.shape
+    for y in prange(H):
+        ym2 = m(y - 2, H)
+        ym1 = m(y - 1, H)
+        yp1 = m(y + 1, H)
+        yp2 = m(y + 2, H)
+        for x in (0, 1, W - 2, W - 1):
+            if 0 <= x < W:
+                _malvar_px(cfa, code, hi, y, x, ym2, ym1, yp1, yp2, W, out)
+        for phase in range(2):
+            c = code[(y & 1) * 2 + phase]
+            x0 = 2
+            if (x0 & 1) != phase:
+                x0 += 1
+            if c == 1:
+                rc = code[(y & 1) * 2 + 1 - phase]
+                oc = 2 - rc
+                for x in range(x0, W - 2, 2):
+                    v = np.int32(cfa[y, x])
+                    h1 = np.int32(cfa[y, x - 1]) + np.int32(cfa[y, x + 1])
+                    v1 = np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x])
+                    h2 = np.int32(cfa[y, x - 2]) + np.int32(cfa[y, x + 2])
+                    v2 = np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x])
+                    d1 = (np.int32(cfa[ym1, x - 1]) + np.int32(cfa[ym1, x + 1]) + np.int32(cfa[yp1, x - 1])
+                          + np.int32(cfa[yp1, x + 1]))
+                    a = (10 * v + 8 * h1 - 2 * h2 - 2 * d1 + v2 + 8) >> 4
+                    b = (10 * v + 8 * v1 - 2 * v2 - 2 * d1 + h2 + 8) >> 4
+                    out[y, x, 1] = cfa[y, x]
+                    out[y, x, rc] = min(max(a, 0), hi)
+                    out[y, x, oc] = min(max(b, 0), hi)
+            else:
+                oc = 2 - c
+                for x in range(x0, W - 2, 2):
+                    v = np.int32(cfa[y, x])
+                    ax2 = (np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x]) + np.int32(cfa[y, x - 2])
+                           + np.int32(cfa[y, x + 2]))
+                    cr1 = (np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x]) + np.int32(cfa[y, x - 1])
+                           + np.int32(cfa[y, x + 1]))
+                    d1 = (np.int32(cfa[ym1, x - 1]) + np.int32(cfa[ym1, x + 1]) + np.int32(cfa[yp1, x - 1])
+                          + np.int32(cfa[yp1, x + 1]))
+                    g = (8 * v + 4 * cr1 - 2 * ax2 + 8) >> 4
+                    o = (12 * v + 4 * d1 - 3 * ax2 + 8) >> 4
+                    out[y, x, c] = cfa[y, x]
+                    out[y, x, 1] = min(max(g, 0), hi)
+                    out[y, x, oc] = min(max(o, 0), hi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _malvar_px(cfa, code, hi, y, x, ym2, ym1, yp1, yp2, W, out) -> None:  # pragma: no cover - numba
+    xm2 = m(x - 2, W)
+    xm1 = m(x - 1, W)
+    xp1 = m(x + 1, W)
+    xp2 = m(x + 2, W)
+    c = code[(y & 1) * 2 + (x & 1)]
+    v = np.int32(cfa[y, x])
+    d1 = np.int32(cfa[ym1, xm1]) + np.int32(cfa[ym1, xp1]) + np.int32(cfa[yp1, xm1]) + np.int32(cfa[yp1, xp1])
+    if c == 1:
+        h1 = np.int32(cfa[y, xm1]) + np.int32(cfa[y, xp1])
+        v1 = np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x])
+        h2 = np.int32(cfa[y, xm2]) + np.int32(cfa[y, xp2])
+        v2 = np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x])
+        rc = code[(y & 1) * 2 + ((x + 1) & 1)]
+        out[y, x, 1] = cfa[y, x]
+        out[y, x, rc] = min(max((10 * v + 8 * h1 - 2 * h2 - 2 * d1 + v2 + 8) >> 4, 0), hi)
+        out[y, x, 2 - rc] = min(max((10 * v + 8 * v1 - 2 * v2 - 2 * d1 + h2 + 8) >> 4, 0), hi)
+    else:
+        ax2 = np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x]) + np.int32(cfa[y, xm2]) + np.int32(cfa[y, xp2])
+        cr1 = np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x]) + np.int32(cfa[y, xm1]) + np.int32(cfa[y, xp1])
+        out[y, x, c] = cfa[y, x]
+        out[y, x, 1] = min(max((8 * v + 4 * cr1 - 2 * ax2 + 8) >> 4, 0), hi)
+        out[y, x, 2 - c] = min(max((12 * v + 4 * d1 - 3 * ax2 + 8) >> 4, 0), hi)
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def menon_green(cfa: np.ndarray, code: np.ndarray, gh: np.ndarray, gv: np.ndarray, dh: np.ndarray,
                 dv: np.ndarray) -> None:  # pragma: no cover
     """Directional green estimates and the chrominance gradients D_H, D_V."""

@@ -62,10 +62,16 @@ def demosaic(raw: np.ndarray, pattern: str = "RGGB", method: str = "menon") -> n
     out = np.empty((H, W, 3), dtype=img.dtype)
     src = np.ascontiguousarray(img)
     if method == "bilinear":
-        _kd.bilinear(src, code, is_int, hi, out)
+        if is_int:
+            _kd.bilinear_int(src, code, out)
+        else:
+            _kd.bilinear(src, code, is_int, hi, out)
         return out
     if method == "malvar":
-        _kd.malvar(src, code, is_int, hi, out)
+        if is_int and W >= 4:
+            _kd.malvar_int(src, code, int(hi), out)
+        else:
+            _kd.malvar(src, code, is_int, hi, out)
         return out
     # Menon: float planes (float64 for float64 input, else float32).
     cfa = src.astype(np.float64 if img.dtype == np.float64 else np.float32)
