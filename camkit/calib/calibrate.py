@@ -188,7 +188,7 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
         Hs = []
         for o, p in zip(kept_objs, kept_imgs, strict=True):
             ok = np.isfinite(p).all(axis=1)
-            Hs.append(find_homography(o[ok, :2], p[ok]))
+            Hs.append(find_homography(o[ok, :2], p[ok], refine=False))  # the LM below refines
         K = intrinsics_from_homographies(Hs, zero_skew=0 not in [i for i in free if cls.param_names[i] == "skew"])
         start_poses = poses_from_homographies(K, Hs)
     normals = np.array([p.R[:, 2] for p in start_poses])
@@ -211,29 +211,30 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
                                free)
     mask = [np.isfinite(imgs[i]).all(axis=1) for i in views]
     rejected: list[tuple[int, int, str]] = []
-    for rnd in range(2):
+    # With outlier rejection: a first fit to 1e-6 relative cost decrease is enough to tell the
+    # outliers; the final fit, without them, goes to 1e-10.
+    tolerances = (1e-6, 1e-10) if reject_sigma is not None else (1e-10,)
+    total_iterations = 0
+    for rnd, tol in enumerate(tolerances):
         cam, vposes, info = _levenberg_marquardt(cam, [objs[i] for i in views], [imgs[i] for i in views],
                                                  [poses[i] for i in views], mask, free, robust_loss, scale,
-                                                 max_iterations)
+                                                 max_iterations, tol)
+        total_iterations += info["iterations"]
         for k, i in enumerate(views):
             poses[i] = vposes[k]
-        if reject_sigma is None or rnd == 1:
+        if rnd == len(tolerances) - 1:
             break
         res = np.concatenate([np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i])[m].T))
                               for i, m in zip(views, mask, strict=True)])
         sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
         limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
-        changed = False
         for k, i in enumerate(views):
             r = np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i]).T))
             bad = mask[k] & (r > limit)
             for j in np.flatnonzero(bad):
                 rejected.append((i, int(j), f"residual {r[j]:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
-            if bad.any():
-                mask[k] = mask[k] & ~bad
-                changed = True
-        if not changed:
-            break
+            mask[k] = mask[k] & ~bad
+    info["iterations"] = total_iterations
     return _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views)
 
 
@@ -289,7 +290,7 @@ def _normal_blocks(Jm, dp, RX, r, w, view, n_views):
                          np.ascontiguousarray(view, dtype=np.int64), n_views)
 
 
-def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations):
+def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations, tol=1e-10):
     """Minimise the (weighted) squared reprojection error over free model parameters and poses.
 
     Pose updates: R <- exp([w]x) R, t <- t + dt (a local parametrisation of the rotation). All
@@ -324,7 +325,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     if not np.isfinite(cost):
         raise EstimationError("start: the closed-form start projects points outside the lens model's valid "
                               "region; check the object points' units and the image points' order")
-    mu = 1e-3
+    mu = 1e-6
     converged, message, it = False, "", 0
     for it in range(1, max_iterations + 1):  # noqa: B007 - the count is reported after the loop
         U, W, V, gm, gp = _normal_blocks(Jm, *Jp, r, wts, view, n_views)
@@ -356,11 +357,11 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
                 rel = (cost - cost_new) / max(cost, 1e-300)
                 p_model, Rs, ts, c, r, Jm, Jp, wts, cost = (p_new, Rs_new, ts_new, c_new, r_new, Jm_new, Jp_new,
                                                              w_new, cost_new)
-                mu = max(mu / 3, 1e-12)
+                mu = max(mu / 10, 1e-15)
                 improved = True
                 step = max(np.abs(dm).max(initial=0.0), np.abs(d).max())
-                if rel < 1e-12 or step < 1e-12:
-                    converged, message = True, f"converged: relative cost decrease {rel:.1e} < 1e-12"
+                if rel < tol or step < 1e-12:
+                    converged, message = True, f"converged: relative cost decrease {rel:.1e} < {tol:.0e}"
                 break
             mu *= 4
         if not improved:
@@ -379,7 +380,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
         cov_unit = np.linalg.inv(S0)
     except np.linalg.LinAlgError:
         cov_unit = np.full((n_free, n_free), np.nan)
-    poses = [Pose(R, t) for R, t in zip(Rs, ts, strict=True)]
+    poses = [Pose._unchecked(R, t) for R, t in zip(Rs, ts, strict=True)]
     return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message,
                       "cov_unit": cov_unit, "n_params": n_params}
 

@@ -69,6 +69,15 @@ class Pose:
 
     # -- construction -------------------------------------------------------------------
     @classmethod
+    def _unchecked(cls, R: np.ndarray, t: np.ndarray) -> Pose:
+        """For camkit's own solvers, whose R is a rotation by construction (a product of
+        exact rotations): skips validation and the projection onto SO(3)."""
+        pose = object.__new__(cls)
+        object.__setattr__(pose, "R", _frozen(np.array(R, dtype=np.float64)))
+        object.__setattr__(pose, "t", _frozen(np.array(t, dtype=np.float64)))
+        return pose
+
+    @classmethod
     def identity(cls) -> Pose:
         """The pose that maps every point to itself."""
         return cls(np.eye(3), np.zeros(3))
