@@ -102,33 +102,46 @@ def malvar(cfa: np.ndarray, code: np.ndarray, is_int: bool, hi: float,
 def bilinear_int(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """:func:`bilinear` for integer mosaics, in integer arithmetic (the same rounding: half up).
 
-    Each row is done in two passes, one per Bayer phase, over its interior columns; within a
-    pass the colour is fixed, so the loop has no branches. The first and last columns take the
-    mirrored path of :func:`bilinear`."""
+    Per row, the four candidate means (horizontal pair, vertical pair, cross of 4, diagonal of
+    4) are computed for every column into contiguous buffers (loops LLVM vectorises), then
+    interleaved into the output by column parity; the first and last columns take the
+    mirrored per-pixel path."""
     H, W = cfa.shape
     for y in prange(H):
         ym = m(y - 1, H)
         yp = m(y + 1, H)
         for x in (0, W - 1):
             _bilinear_px(cfa, code, y, x, ym, yp, H, W, out)
-        for phase in range(2):
-            c = code[(y & 1) * 2 + phase]
-            x0 = 2 if phase == 0 else 1
-            if c == 1:
-                rc = code[(y & 1) * 2 + 1 - phase]
-                oc = 2 - rc
-                for x in range(x0, W - 1, 2):
-                    out[y, x, 1] = cfa[y, x]
-                    out[y, x, rc] = (np.int32(cfa[y, x - 1]) + np.int32(cfa[y, x + 1]) + 1) >> 1
-                    out[y, x, oc] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + 1) >> 1
-            else:
-                oc = 2 - c
-                for x in range(x0, W - 1, 2):
-                    out[y, x, c] = cfa[y, x]
-                    out[y, x, 1] = (np.int32(cfa[ym, x]) + np.int32(cfa[yp, x]) + np.int32(cfa[y, x - 1])
-                                    + np.int32(cfa[y, x + 1]) + 2) >> 2
-                    out[y, x, oc] = (np.int32(cfa[ym, x - 1]) + np.int32(cfa[ym, x + 1]) + np.int32(cfa[yp, x - 1])
-                                     + np.int32(cfa[yp, x + 1]) + 2) >> 2
+        r0 = cfa[ym]
+        r1 = cfa[y]
+        r2 = cfa[yp]
+        hm = np.empty(W, cfa.dtype)
+        vm = np.empty(W, cfa.dtype)
+        cr = np.empty(W, cfa.dtype)
+        dg = np.empty(W, cfa.dtype)
+        for x in range(1, W - 1):
+            a = np.int32(r0[x]) + np.int32(r2[x])
+            b = np.int32(r1[x - 1]) + np.int32(r1[x + 1])
+            hm[x] = (b + 1) >> 1
+            vm[x] = (a + 1) >> 1
+            cr[x] = (a + b + 2) >> 2
+            dg[x] = (np.int32(r0[x - 1]) + np.int32(r0[x + 1]) + np.int32(r2[x - 1]) + np.int32(r2[x + 1]) + 2) >> 2
+        p = y & 1
+        ph = 0 if code[p * 2] != 1 else 1  # column parity of this row's red or blue sites
+        own_c = code[p * 2 + ph]  # 0 (a red row) or 2 (a blue row)
+        orow = out[y]
+        if own_c == 0:
+            for x in range(1, W - 1):
+                own = (x & 1) == ph
+                orow[x, 0] = r1[x] if own else hm[x]
+                orow[x, 1] = cr[x] if own else r1[x]
+                orow[x, 2] = dg[x] if own else vm[x]
+        else:
+            for x in range(1, W - 1):
+                own = (x & 1) == ph
+                orow[x, 0] = dg[x] if own else vm[x]
+                orow[x, 1] = cr[x] if own else r1[x]
+                orow[x, 2] = r1[x] if own else hm[x]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
