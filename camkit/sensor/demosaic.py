@@ -7,6 +7,7 @@ import numpy as np
 from camkit._kernels import demosaic as _kd
 from camkit._validate import as_image, check_choice
 from camkit.errors import ShapeError
+from camkit.resample.remap import new_image
 from camkit.sensor.cfa import pattern_code
 
 __all__ = ["DEMOSAIC_METHODS", "demosaic"]
@@ -59,7 +60,7 @@ def demosaic(raw: np.ndarray, pattern: str = "RGGB", method: str = "menon") -> n
     is_int = img.dtype.kind == "u"
     hi = float(np.iinfo(img.dtype).max) if is_int else 0.0
     H, W = img.shape
-    out = np.empty((H, W, 3), dtype=img.dtype)
+    out = new_image((H, W, 3), img.dtype)  # pages touched in NumPy, not by the parallel kernel
     src = np.ascontiguousarray(img)
     if method == "bilinear":
         if is_int:
