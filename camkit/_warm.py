@@ -1,7 +1,8 @@
 """Compile (into numba's on-disk cache) the kernels of the calibration pipeline: detection,
-PNG decoding, thumbnails, projection with Jacobians. ``camkit demo`` runs this in a second
-process on a first run, so compilation overlaps with rendering on another core; once the
-cache is filled it only loads and exits. Run as ``python -m camkit._warm``."""
+PNG decoding, thumbnails, projection with Jacobians; and let matplotlib build its font cache.
+``camkit demo`` runs this in a second process on a first run, so compilation overlaps with
+rendering on another core; once the caches are filled it only loads and exits. Run as
+``python -m camkit._warm``."""
 
 from __future__ import annotations
 
@@ -12,6 +13,11 @@ import numpy as np
 
 
 def warm_pipeline() -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # a first import builds matplotlib's font cache
+
     from camkit.calib import Checkerboard, detect_corners
     from camkit.io import read_image, write_png
     from camkit.lens import BrownConrady
