@@ -271,18 +271,28 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
     def corner(a: int, b: int) -> np.ndarray:
         return where.get((a, b), M[2] + a * M[0] + b * M[1])  # the lattice fit where not seen
 
-    # The outer square diagonal from a corner, half a diagonal step outward from it (local, so
-    # perspective and distortion do not move the probe off the square).
-    p00, p11 = corner(0, 0), corner(1, 1)
-    pn, pm = corner(cols - 1, rows - 1), corner(cols - 2, rows - 2)
-    ends = np.array([p00 + 0.5 * (p00 - p11), pn + 0.5 * (pn - pm)])
-    shade = _sample(s, ends[:, :1], ends[:, 1:], "bilinear").ravel()
-    # Under a half-turn the outer square diagonal from corner (0, 0) trades places with the one
-    # beyond the last corner; their colours differ when cols and rows differ in parity.
+    # Colours decide the half-turn: from each seen corner (a, b) whose diagonal neighbour
+    # (a + 1, b + 1) is seen too, probe half a diagonal step the other way, inside square
+    # (a, b) of the board, which is black when a + b is even; under a half-turn it is square
+    # (cols - a, rows - b). The two predictions differ when cols + rows is odd; every such
+    # corner votes (local probes: perspective and lens distortion cannot move them off their
+    # square, and no corner is extrapolated).
     if (cols + rows) % 2 == 1:
-        flip = shade[0] > shade[1]
+        a, b = g[:, 0], g[:, 1]
+        nb = np.array([where.get((int(x) + 1, int(y) + 1), (np.nan, np.nan)) for x, y in g])
+        ok = np.isfinite(nb).all(axis=1)
+        if ok.any():
+            p = pts[idx][ok]
+            probe = p + 0.5 * (p - nb[ok])
+            shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
+            black_expected = (a[ok] + b[ok]) % 2 == 0
+            mid = 0.5 * (shade.max() + shade.min())
+            agree = np.mean((shade < mid) == black_expected)
+            flip = agree < 0.5
+        else:
+            flip = False
     else:
-        flip = (p00 @ [1.0, 1.0]) > (pn @ [1.0, 1.0])
+        flip = (corner(0, 0) @ [1.0, 1.0]) > (corner(cols - 1, rows - 1) @ [1.0, 1.0])
     if flip:
         g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
     # Sub-pixel refinement with the window chosen for this image.
@@ -298,5 +308,31 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
               & (out[:, 1] <= grey.shape[0] - 1))
     out[~inside] = np.nan
     sigma[~inside] = np.nan
+    bent = _bent_fraction(out.reshape(rows, cols, 2))
+    if bent > 0.1:
+        # A lattice walked wrongly (a skipped or doubled column, as strong fisheye distortion
+        # can cause) bends rows by a whole square; fingers over edge corners bend a few. Say
+        # "not found" rather than return corners with wrong indices.
+        return fail(f"not found: the corner lattice is inconsistent ({bent:.0%} of rows and columns bend by more "
+                    "than half a square; a lens this strong may need the board nearer the image centre)", r)
     found = int(np.isfinite(out).all(axis=1).sum())
     return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)")
+
+
+def _bent_fraction(grid: np.ndarray) -> float:
+    """Fraction of consecutive corner triples along rows and columns whose second difference
+    exceeds half the smaller of their two spacings (a correct lattice, even through a strong
+    lens, stays far below: 0.47 at most in tests on fisheye renders)."""
+    ratios = []
+    for q in (grid, grid.transpose(1, 0, 2)):
+        if q.shape[1] < 3:
+            continue
+        d1 = np.diff(q, axis=1)
+        d2 = np.diff(q, n=2, axis=1)
+        step = np.minimum(np.hypot(d1[:, :-1, 0], d1[:, :-1, 1]), np.hypot(d1[:, 1:, 0], d1[:, 1:, 1]))
+        ratios.append((np.hypot(d2[..., 0], d2[..., 1]) / np.maximum(step, 1e-12)).ravel())
+    if not ratios:
+        return 0.0
+    r = np.concatenate(ratios)
+    r = r[np.isfinite(r)]
+    return float(np.mean(r > 0.5)) if r.size else 0.0
