@@ -124,19 +124,30 @@ def _assemble(pts: np.ndarray, dirs: np.ndarray, max_angle_deg: float = 20.0) ->
     np.fill_diagonal(dist, np.inf)
     cosmax = np.cos(np.radians(max_angle_deg))
     nb = -np.ones((n, 4), dtype=np.int64)
+    # The neighbour along an edge is among a corner's 8 nearest (4 along the edges, 4 on the
+    # diagonals), so only those are looked at.
+    K = min(8, n - 1)
+    rows = np.arange(n)[:, None]
+    nn = np.argpartition(dist, K - 1, axis=1)[:, :K] if K > 0 else np.zeros((n, 0), np.int64)
+    Dn = D[rows, nn]  # (n, K, 2)
+    dn = dist[rows, nn]
     for k, (ax, sg) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
         u = sg * dirs[:, ax]  # (n, 2)
-        cosang = np.einsum("ijk,ik->ij", D, u) / dist
-        cand = np.where(cosang > cosmax, dist, np.inf)
+        cosang = (Dn[..., 0] * u[:, :1] + Dn[..., 1] * u[:, 1:]) / dn
+        cand = np.where(cosang > cosmax, dn, np.inf)
+        if K == 0:
+            continue
         j = np.argmin(cand, axis=1)
-        nb[:, k] = np.where(np.isfinite(cand[np.arange(n), j]), j, -1)
+        nb[:, k] = np.where(np.isfinite(cand[np.arange(n), j]), nn[np.arange(n), j], -1)
     spacing = float(np.median(dist.min(axis=1)))
     # The walk is graph logic over a few hundred corners: plain Python floats, not NumPy
     # scalars, keep it to a few milliseconds.
     P = pts.tolist()
     Dr = dirs.tolist()
     NB = nb.tolist()
-    limit = 3.6 * spacing
+    # Whether each link is short enough, looked up as Python booleans (indexing the NumPy
+    # distance matrix inside the walk cost more than the rest of it).
+    near = (np.take_along_axis(dist, np.maximum(nb, 0), axis=1) <= 3.6 * spacing).tolist()
     visited = [False] * n
     best: dict[int, tuple[int, int]] = {}
     order = np.argsort(-(nb >= 0).sum(axis=1)).tolist()
@@ -152,8 +163,8 @@ def _assemble(pts: np.ndarray, dirs: np.ndarray, max_angle_deg: float = 20.0) ->
             i = queue.popleft()
             gi, gj = comp[i]
             (eax, eay), (ebx, eby) = axes[i]
-            for j in NB[i]:
-                if j < 0 or j in comp or i not in NB[j] or dist[i, j] > limit:
+            for j, ok in zip(NB[i], near[i], strict=True):
+                if j < 0 or not ok or j in comp or i not in NB[j]:
                     continue
                 sx, sy = P[j][0] - P[i][0], P[j][1] - P[i][1]
                 pa, pb = sx * eax + sy * eay, sx * ebx + sy * eby
