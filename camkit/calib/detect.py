@@ -288,22 +288,26 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
     # (cols - a, rows - b). The two predictions differ when cols + rows is odd; every such
     # corner votes (local probes: perspective and lens distortion cannot move them off their
     # square, and no corner is extrapolated).
+    a, b = g[:, 0], g[:, 1]
+    nb = np.array([where.get((int(x) + 1, int(y) + 1), (np.nan, np.nan)) for x, y in g])
+    ok = np.isfinite(nb).all(axis=1)
+    agree = 1.0
+    if ok.sum() >= 4:
+        p = pts[idx][ok]
+        probe = p + 0.5 * (p - nb[ok])
+        shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
+        mid = 0.5 * (shade.max() + shade.min())
+        agree = float(np.mean((shade < mid) == ((a[ok] + b[ok]) % 2 == 0)))
     if (cols + rows) % 2 == 1:
-        a, b = g[:, 0], g[:, 1]
-        nb = np.array([where.get((int(x) + 1, int(y) + 1), (np.nan, np.nan)) for x, y in g])
-        ok = np.isfinite(nb).all(axis=1)
-        if ok.any():
-            p = pts[idx][ok]
-            probe = p + 0.5 * (p - nb[ok])
-            shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
-            black_expected = (a[ok] + b[ok]) % 2 == 0
-            mid = 0.5 * (shade.max() + shade.min())
-            agree = np.mean((shade < mid) == black_expected)
-            flip = agree < 0.5
-        else:
-            flip = False
+        flip = agree < 0.5
+        agree = max(agree, 1.0 - agree)
     else:
         flip = (corner(0, 0) @ [1.0, 1.0]) > (corner(cols - 1, rows - 1) @ [1.0, 1.0])
+    if agree < 0.8:
+        # Labels off by one square (a partial lattice trimmed on the wrong side) put every
+        # probe in a square of the other colour.
+        return fail(f"not found: the corners' labels disagree with the squares' colours ({agree:.0%} agree); "
+                    "part of the board may be hidden")
     if flip:
         g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
     # Sub-pixel refinement with the window chosen for this image.
