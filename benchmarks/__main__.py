@@ -18,6 +18,7 @@ from benchmarks.harness import markdown_table, run_case
 
 MODULES = ["bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_calib"]
 RESULTS = Path(__file__).with_name("RESULTS.md")
+NOTES = Path(__file__).with_name("notes.md")  # appended to RESULTS.md: what a table alone cannot say
 
 
 def main() -> int:
@@ -49,8 +50,10 @@ def main() -> int:
             "# Benchmark results\n\n"
             f"Measured {now} on {machine} with `python -m benchmarks`.\n"
             "Each time is the median of several repeats after warm-up calls (numba compilation\n"
-            "excluded); camkit and the peer were measured in the same run, so the ratio is what\n"
-            "counts on this shared, noisy machine.\n\n" + table
+            "excluded). camkit and the peer are timed alternately, call beside call, and the ratio\n"
+            "is the median of those pairs' ratios: on this shared, noisy machine the ratio is what\n"
+            "counts, and it still moves between runs (see the notes below the tables).\n\n" + table
+            + (("\n" + NOTES.read_text()) if NOTES.exists() else "")
         )
     return 0
 

@@ -27,10 +27,13 @@ class Row:
     case: Case
     camkit_s: float
     peer_s: float
+    paired_ratio: float | None = None
 
     @property
     def ratio(self) -> float:
-        return self.camkit_s / self.peer_s
+        """The median of the per-repeat ratios (each camkit call timed right beside a peer
+        call), or the ratio of the medians where no pairs were taken."""
+        return self.paired_ratio if self.paired_ratio is not None else self.camkit_s / self.peer_s
 
     @property
     def verdict(self) -> str:
@@ -53,10 +56,22 @@ def median_time(fn: Callable[[], object], repeats: int, warmup: int = 2) -> floa
 
 
 def run_case(case: Case) -> Row:
-    # Interleave: camkit, peer, so a slow spell on the shared machine hits both.
-    ck = median_time(case.camkit, case.repeats, case.warmup)
-    peer = median_time(case.peer, case.repeats, case.warmup)
-    return Row(case, ck, peer)
+    """Warm both up, then alternate: camkit, peer, camkit, peer... so a slow spell on the
+    shared machine hits both sides of a pair; the ratio is the median of the pairs' ratios."""
+    for _ in range(case.warmup):
+        case.camkit()
+        case.peer()
+    ck, peer = [], []
+    for _ in range(case.repeats):
+        t0 = time.perf_counter()
+        case.camkit()
+        t1 = time.perf_counter()
+        case.peer()
+        t2 = time.perf_counter()
+        ck.append(t1 - t0)
+        peer.append(t2 - t1)
+    ratios = [a / b for a, b in zip(ck, peer, strict=True)]
+    return Row(case, statistics.median(ck), statistics.median(peer), statistics.median(ratios))
 
 
 def _fmt_time(s: float) -> str:

@@ -166,8 +166,10 @@ def _bilinear_px(cfa, code, y, x, ym, yp, H, W, out) -> None:  # pragma: no cove
 def malvar_int(cfa: np.ndarray, code: np.ndarray, hi: int, out: np.ndarray) -> None:  # pragma: no cover
     """:func:`malvar` for integer mosaics in integer arithmetic: the filters' weights times 16
     are integers, so ``(sum + 8) >> 4`` is the same round-half-up result as the float path.
-    Two branch-free passes per row (one per Bayer phase) over columns 2..W-3; the two columns
-    at each edge take the mirrored path."""
+    Per row, the four filters (green-site along the row and along the column, colour-site
+    green and opposite colour) are evaluated for every interior column into contiguous
+    buffers (vectorised loops), then interleaved by column parity; the two columns at each
+    edge take the mirrored path."""
     H, W = cfa.shape
     for y in prange(H):
         ym2 = m(y - 2, H)
@@ -177,42 +179,42 @@ def malvar_int(cfa: np.ndarray, code: np.ndarray, hi: int, out: np.ndarray) -> N
         for x in (0, 1, W - 2, W - 1):
             if 0 <= x < W:
                 _malvar_px(cfa, code, hi, y, x, ym2, ym1, yp1, yp2, W, out)
-        for phase in range(2):
-            c = code[(y & 1) * 2 + phase]
-            x0 = 2
-            if (x0 & 1) != phase:
-                x0 += 1
-            if c == 1:
-                rc = code[(y & 1) * 2 + 1 - phase]
-                oc = 2 - rc
-                for x in range(x0, W - 2, 2):
-                    v = np.int32(cfa[y, x])
-                    h1 = np.int32(cfa[y, x - 1]) + np.int32(cfa[y, x + 1])
-                    v1 = np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x])
-                    h2 = np.int32(cfa[y, x - 2]) + np.int32(cfa[y, x + 2])
-                    v2 = np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x])
-                    d1 = (np.int32(cfa[ym1, x - 1]) + np.int32(cfa[ym1, x + 1]) + np.int32(cfa[yp1, x - 1])
-                          + np.int32(cfa[yp1, x + 1]))
-                    a = (10 * v + 8 * h1 - 2 * h2 - 2 * d1 + v2 + 8) >> 4
-                    b = (10 * v + 8 * v1 - 2 * v2 - 2 * d1 + h2 + 8) >> 4
-                    out[y, x, 1] = cfa[y, x]
-                    out[y, x, rc] = min(max(a, 0), hi)
-                    out[y, x, oc] = min(max(b, 0), hi)
-            else:
-                oc = 2 - c
-                for x in range(x0, W - 2, 2):
-                    v = np.int32(cfa[y, x])
-                    ax2 = (np.int32(cfa[ym2, x]) + np.int32(cfa[yp2, x]) + np.int32(cfa[y, x - 2])
-                           + np.int32(cfa[y, x + 2]))
-                    cr1 = (np.int32(cfa[ym1, x]) + np.int32(cfa[yp1, x]) + np.int32(cfa[y, x - 1])
-                           + np.int32(cfa[y, x + 1]))
-                    d1 = (np.int32(cfa[ym1, x - 1]) + np.int32(cfa[ym1, x + 1]) + np.int32(cfa[yp1, x - 1])
-                          + np.int32(cfa[yp1, x + 1]))
-                    g = (8 * v + 4 * cr1 - 2 * ax2 + 8) >> 4
-                    o = (12 * v + 4 * d1 - 3 * ax2 + 8) >> 4
-                    out[y, x, c] = cfa[y, x]
-                    out[y, x, 1] = min(max(g, 0), hi)
-                    out[y, x, oc] = min(max(o, 0), hi)
+        a2 = cfa[ym2]
+        a1 = cfa[ym1]
+        r = cfa[y]
+        b1 = cfa[yp1]
+        b2 = cfa[yp2]
+        f_row = np.empty(W, np.int32)
+        f_col = np.empty(W, np.int32)
+        f_g = np.empty(W, np.int32)
+        f_o = np.empty(W, np.int32)
+        for x in range(2, W - 2):
+            v = np.int32(r[x])
+            h1 = np.int32(r[x - 1]) + np.int32(r[x + 1])
+            v1 = np.int32(a1[x]) + np.int32(b1[x])
+            h2 = np.int32(r[x - 2]) + np.int32(r[x + 2])
+            v2 = np.int32(a2[x]) + np.int32(b2[x])
+            d1 = np.int32(a1[x - 1]) + np.int32(a1[x + 1]) + np.int32(b1[x - 1]) + np.int32(b1[x + 1])
+            f_row[x] = min(max((10 * v + 8 * h1 - 2 * h2 - 2 * d1 + v2 + 8) >> 4, 0), hi)
+            f_col[x] = min(max((10 * v + 8 * v1 - 2 * v2 - 2 * d1 + h2 + 8) >> 4, 0), hi)
+            f_g[x] = min(max((8 * v + 4 * (h1 + v1) - 2 * (h2 + v2) + 8) >> 4, 0), hi)
+            f_o[x] = min(max((12 * v + 4 * d1 - 3 * (h2 + v2) + 8) >> 4, 0), hi)
+        p = y & 1
+        ph = 0 if code[p * 2] != 1 else 1  # column parity of this row's red or blue sites
+        own_c = code[p * 2 + ph]  # 0 (a red row) or 2 (a blue row)
+        orow = out[y]
+        if own_c == 0:
+            for x in range(2, W - 2):
+                own = (x & 1) == ph
+                orow[x, 0] = r[x] if own else f_row[x]
+                orow[x, 1] = f_g[x] if own else r[x]
+                orow[x, 2] = f_o[x] if own else f_col[x]
+        else:
+            for x in range(2, W - 2):
+                own = (x & 1) == ph
+                orow[x, 0] = f_o[x] if own else f_col[x]
+                orow[x, 1] = f_g[x] if own else r[x]
+                orow[x, 2] = r[x] if own else f_row[x]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
