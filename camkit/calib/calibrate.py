@@ -224,12 +224,12 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
             poses[i] = vposes[k]
         if rnd == len(tolerances) - 1:
             break
-        res = np.concatenate([np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i])[m].T))
-                              for i, m in zip(views, mask, strict=True)])
+        norms = [np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i]).T)) for i in views]
+        res = np.concatenate([r[m] for r, m in zip(norms, mask, strict=True)])
         sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
         limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
         for k, i in enumerate(views):
-            r = np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i]).T))
+            r = norms[k]
             bad = mask[k] & (r > limit)
             for j in np.flatnonzero(bad):
                 rejected.append((i, int(j), f"residual {r[j]:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
@@ -279,6 +279,24 @@ def _weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
     return 1.0 / (1.0 + n * n)
 
 
+def _seed_valid_radius(model: CameraModel, points_cam: np.ndarray) -> None:
+    """Inside the solver a Brown-Conrady model needs to be one-to-one only as far out as the
+    points it projects: scan the disk up to 2 % beyond the farthest point's ideal radius
+    (128 steps: finer than the default scan's 512 over three times the image corner's radius)
+    and record that as the model's valid radius. Only for the solver's own trial models; the
+    model returned is built fresh."""
+    from camkit._kernels import brown_conrady as _kb
+
+    z = points_cam[:, 2]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.hypot(points_cam[:, 0], points_cam[:, 1]) / z
+    r = r[(z > 0) & np.isfinite(r)]
+    coeffs = model._coeffs()
+    if r.size == 0 or not coeffs.any():
+        return
+    model._cache["r_valid"] = float(_kb.valid_radius(coeffs, 1.02 * float(r.max()), 64, 128))
+
+
 def _normal_blocks(Jm, dp, RX, r, w, view, n_views):
     """Blocks of the weighted normal equations: U (intrinsics), W (intrinsics x pose, per view),
     V (6x6 per view), and the gradients (one pass of a numba kernel; a view left without
@@ -316,7 +334,10 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     def evaluate(p_model, Rs, ts):
         c = cls.from_params(p_model, width=cam.width, height=cam.height)
         RX = np.einsum("nij,nj->ni", Rs[view], obj)
-        uv, dp, dk = c.project_with_jacobian(RX + ts[view])
+        Xc = RX + ts[view]
+        if cls.name == "brown-conrady":
+            _seed_valid_radius(c, Xc)
+        uv, dp, dk = c.project_with_jacobian(Xc)
         return c, uv - img, dk[:, :, free], (dp, RX)
 
     c, r, Jm, Jp = evaluate(p_model, Rs, ts)
@@ -381,6 +402,8 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     except np.linalg.LinAlgError:
         cov_unit = np.full((n_free, n_free), np.nan)
     poses = [Pose._unchecked(R, t) for R, t in zip(Rs, ts, strict=True)]
+    # A fresh model: the one used in the loop knows its valid region only as far as the data.
+    c = cls.from_params(p_model, width=cam.width, height=cam.height)
     return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message,
                       "cov_unit": cov_unit, "n_params": n_params}
 

@@ -76,5 +76,5 @@ def poses_from_homographies(K: np.ndarray, homographies: list[np.ndarray]) -> li
         R = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
         u, _, vt = np.linalg.svd(R)
         R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-        poses.append(Pose(R, t))
+        poses.append(Pose._unchecked(R, t))  # R is a rotation by construction (SVD above)
     return poses
