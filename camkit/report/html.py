@@ -77,8 +77,10 @@ def _thumb(img: np.ndarray, width: int) -> tuple[np.ndarray, float]:
     h = max(round(img.shape[0] * s), 1)
     small = resize(img, width=width, height=h, interpolation="area") if s < 1 else img
     small = small.astype(np.float64)
-    if img.dtype.kind == "u":
-        small /= np.iinfo(img.dtype).max
+    # Stretch to the image's own range: a 12-bit sensor's data in a 16-bit file would
+    # otherwise show nearly black.
+    lo, hi = np.percentile(small, [0.5, 99.5])
+    small = (small - lo) / max(hi - lo, 1e-12)
     return np.clip(small, 0, 1), small.shape[1] / img.shape[1]
 
 
