@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from camkit import __version__
+from camkit._validate import as_matrix, as_points, as_positive_float
 from camkit.errors import ParameterError
 from camkit.io._atomic import write_atomic
 from camkit.lens.base import CameraModel
@@ -34,12 +35,20 @@ def projection_uncertainty(model: CameraModel, covariance: np.ndarray, free_para
     eliminated), in the spirit of mrcal's projection uncertainty (D. Kogan, mrcal
     documentation, "Projection uncertainty").
     """
-    px = np.asarray(pixels, dtype=np.float64)
-    idx = [model.param_names.index(n) for n in free_params]
-    X = model.unproject_depth(px, np.full(px.shape[:-1], float(depth_m)))
+    if not isinstance(model, CameraModel):
+        raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
+    names = tuple(free_params)
+    unknown = [n for n in names if n not in model.param_names]
+    if unknown:
+        raise ParameterError(f"free_params: {unknown} are not parameters of {model.name!r}")
+    cov = as_matrix(covariance, (len(names), len(names)), "covariance")
+    depth = as_positive_float(depth_m, "depth_m")
+    px = as_points(pixels, 2, "pixels")
+    idx = [model.param_names.index(n) for n in names]
+    X = model.unproject_depth(px, np.full(px.shape[:-1], depth))
     _, _, dk = model.project_with_jacobian(X)
     J = dk[..., idx]
-    C = np.einsum("...ai,ij,...bj->...ab", J, covariance, J)
+    C = np.einsum("...ai,ij,...bj->...ab", J, cov, J)
     tr, det = C[..., 0, 0] + C[..., 1, 1], C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] ** 2
     lam = tr / 2 + np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
     return np.sqrt(np.maximum(lam, 0.0))

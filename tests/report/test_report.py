@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from camkit.calib import Checkerboard, calibrate
-from camkit.errors import ParameterError
+from camkit.errors import CamkitError, ParameterError
 from camkit.io.results import results_to_dict, write_results
 from camkit.render import default_camera, plan_views
 from camkit.report import projection_uncertainty, write_report
@@ -78,3 +78,17 @@ def test_report_without_images_and_bad_input(result, tmp_path):
     with pytest.raises(ParameterError, match="result: expected a CalibrationResult"):
         write_report(tmp_path / "x.html", "result")
     assert not (tmp_path / "x.html").exists()
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"model": "camera"}, "model: expected a camkit camera model"),
+    ({"free_params": ("fx", "zz")}, r"free_params: \['zz'\] are not parameters"),
+    ({"covariance": np.eye(3)}, r"covariance: expected shape \(2, 2\)"),
+    ({"depth_m": 0.0}, "depth_m"),
+    ({"pixels": [[1.0, 2.0, 3.0]]}, r"pixels: expected shape \(\.\.\., 2\)"),
+])
+def test_projection_uncertainty_bad_input(kwargs, match):
+    args = {"model": CAM, "covariance": np.eye(2), "free_params": ("fx", "fy"), "pixels": [[10.0, 20.0]],
+            "depth_m": 1.0} | kwargs
+    with pytest.raises(CamkitError, match=match):
+        projection_uncertainty(**args)
