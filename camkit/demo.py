@@ -52,7 +52,13 @@ def run_demo(out_dir: str | os.PathLike = "camkit-demo", *, views: int = 15, see
     import subprocess
     import sys
 
+    from camkit._validate import as_positive_int
+    from camkit.errors import ParameterError
     from camkit.render.dataset import default_camera, simulate_dataset
+
+    views = as_positive_int(views, "views")
+    if views < 3:
+        raise ParameterError(f"views: expected at least 3 (calibration needs 3 orientations of the board), got {views}")
 
     # On a first run most of the time is numba compiling; compile the detection side in a
     # second process while this one renders.

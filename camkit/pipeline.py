@@ -32,8 +32,9 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
                     progress: Callable[[str, int, int], None] | None = None) -> CalibrationJob:
     """Detect, calibrate and write what was asked for (each file atomically).
 
-    ``progress(stage, done, total)`` is called during detection (stage ``"detect"``) and once
-    each for ``"calibrate"`` and ``"report"``. No output may be one of the inputs."""
+    ``progress(stage, done, total)`` is called during detection (stage ``"detect"``), then
+    with 0 and 1 of 1 around the solve (``"calibrate"``) and the report (``"report"``). No
+    output may be one of the inputs."""
     from camkit.io.camera_files import save_camera
     from camkit.io.results import write_results
     from camkit.report import write_report
@@ -48,6 +49,8 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
     def det_progress(done: int, total: int) -> None:
         if progress is not None:
             progress("detect", done, total)
+            if done == total:
+                progress("calibrate", 0, 1)  # the solve starts when detection ends
 
     result = calibrate_images(files, board, model=model, progress=det_progress)
     if progress is not None:
@@ -55,10 +58,12 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
     cam_path = res_path = rep_path = None
     if camera_file is not None:
         cam_path = save_camera(camera_file, result.model, rms_px=result.rms_px,
-                               stddev={k: v for k, v in result.stddev.items()})
+                               stddev=dict(result.stddev))
     if results_file is not None:
         res_path = write_results(results_file, result, names)
     if report_file is not None:
+        if progress is not None:
+            progress("report", 0, 1)
         rep_path = write_report(report_file, result, images=files, image_names=names, truth=truth, title=title)
         if progress is not None:
             progress("report", 1, 1)

@@ -126,22 +126,29 @@ def bilinear_int(cfa: np.ndarray, code: np.ndarray, out: np.ndarray) -> None:  #
             vm[x] = (a + 1) >> 1
             cr[x] = (a + b + 2) >> 2
             dg[x] = (np.int32(r0[x - 1]) + np.int32(r0[x + 1]) + np.int32(r2[x - 1]) + np.int32(r2[x + 1]) + 2) >> 2
-        p = y & 1
-        ph = 0 if code[p * 2] != 1 else 1  # column parity of this row's red or blue sites
-        own_c = code[p * 2 + ph]  # 0 (a red row) or 2 (a blue row)
-        orow = out[y]
-        if own_c == 0:
-            for x in range(1, W - 1):
-                own = (x & 1) == ph
-                orow[x, 0] = r1[x] if own else hm[x]
-                orow[x, 1] = cr[x] if own else r1[x]
-                orow[x, 2] = dg[x] if own else vm[x]
-        else:
-            for x in range(1, W - 1):
-                own = (x & 1) == ph
-                orow[x, 0] = dg[x] if own else vm[x]
-                orow[x, 1] = cr[x] if own else r1[x]
-                orow[x, 2] = r1[x] if own else hm[x]
+        _interleave(out[y], code, y, r1, cr, dg, hm, vm, 1, W - 1)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _interleave(orow, code, y, raw, green_at_c, other_at_c, row_at_g, col_at_g, x0, x1) -> None:  # pragma: no cover
+    """Write columns x0..x1-1 of row y from per-column candidates: at a red/blue site its own
+    sample, ``green_at_c`` and ``other_at_c`` (the opposite colour); at a green site its own
+    sample, ``row_at_g`` (the colour of this row's other sites) and ``col_at_g``. Selecting by
+    column parity inside one loop keeps it a single pass over contiguous buffers."""
+    p = y & 1
+    ph = 0 if code[p * 2] != 1 else 1  # column parity of this row's red or blue sites
+    if code[p * 2 + ph] == 0:  # a red row
+        for x in range(x0, x1):
+            own = (x & 1) == ph
+            orow[x, 0] = raw[x] if own else row_at_g[x]
+            orow[x, 1] = green_at_c[x] if own else raw[x]
+            orow[x, 2] = other_at_c[x] if own else col_at_g[x]
+    else:  # a blue row
+        for x in range(x0, x1):
+            own = (x & 1) == ph
+            orow[x, 0] = other_at_c[x] if own else col_at_g[x]
+            orow[x, 1] = green_at_c[x] if own else raw[x]
+            orow[x, 2] = raw[x] if own else row_at_g[x]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -199,22 +206,7 @@ def malvar_int(cfa: np.ndarray, code: np.ndarray, hi: int, out: np.ndarray) -> N
             f_col[x] = min(max((10 * v + 8 * v1 - 2 * v2 - 2 * d1 + h2 + 8) >> 4, 0), hi)
             f_g[x] = min(max((8 * v + 4 * (h1 + v1) - 2 * (h2 + v2) + 8) >> 4, 0), hi)
             f_o[x] = min(max((12 * v + 4 * d1 - 3 * (h2 + v2) + 8) >> 4, 0), hi)
-        p = y & 1
-        ph = 0 if code[p * 2] != 1 else 1  # column parity of this row's red or blue sites
-        own_c = code[p * 2 + ph]  # 0 (a red row) or 2 (a blue row)
-        orow = out[y]
-        if own_c == 0:
-            for x in range(2, W - 2):
-                own = (x & 1) == ph
-                orow[x, 0] = r[x] if own else f_row[x]
-                orow[x, 1] = f_g[x] if own else r[x]
-                orow[x, 2] = f_o[x] if own else f_col[x]
-        else:
-            for x in range(2, W - 2):
-                own = (x & 1) == ph
-                orow[x, 0] = f_o[x] if own else f_col[x]
-                orow[x, 1] = f_g[x] if own else r[x]
-                orow[x, 2] = r[x] if own else f_row[x]
+        _interleave(out[y], code, y, r, f_g, f_o, f_row, f_col, 2, W - 2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

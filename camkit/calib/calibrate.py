@@ -3,17 +3,21 @@ least squares over the intrinsics, the distortion and every view's pose."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import os
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
 
 from camkit._validate import as_points, as_positive_float, as_positive_int, check_choice
+from camkit.calib.detect import detect_corners
 from camkit.calib.homography import find_homography
+from camkit.calib.targets import Checkerboard
 from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
+from camkit.io.images import read_image
 from camkit.lens.base import CameraModel, get_model
 
 __all__ = ["DEFAULT_FIX", "CalibrationResult", "calibrate", "calibrate_images", "default_fix"]
@@ -502,12 +506,6 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
         With ``detections`` (one per image, in input order); images where no board was found
         are in ``rejected_views`` with the detector's reason.
     """
-    import os
-
-    from camkit.calib.detect import detect_corners
-    from camkit.calib.targets import Checkerboard
-    from camkit.io.images import read_image
-
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
     if isinstance(images, np.ndarray | str | os.PathLike) or not hasattr(images, "__len__"):
@@ -539,6 +537,4 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
     reasons = {i: r for i, r in result.rejected_views}
     rejected_views = [(i, reasons[i] if d.found else f"board not found: {d.message}")
                       for i, d in enumerate(detections) if i in reasons]
-    from dataclasses import replace
-
     return replace(result, rejected_views=rejected_views, detections=detections)

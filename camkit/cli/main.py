@@ -25,6 +25,7 @@ class _Progress:
     """A rich progress bar per pipeline stage (render, detect, undistort...)."""
 
     LABELS: ClassVar[dict[str, str]] = {"render": "rendering views", "detect": "detecting corners",
+                                        "calibrate": "calibrating", "report": "writing the report",
                                         "undistort": "undistorting"}
 
     def __init__(self, console) -> None:

@@ -72,6 +72,8 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
         The file is not an image of these formats, is damaged, or uses an unsupported variant;
         the message names the file and the reason.
     """
+    if not isinstance(path, str | os.PathLike):
+        raise ImageFileError(f"path: expected a file name (str or path), got {type(path).__name__}")
     p = Path(path)
     try:
         data = p.read_bytes()

@@ -143,12 +143,12 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
                  "A view much above the others is worth a look: motion blur, a bent board, a wrong detection."))
 
     # Residuals: scatter and vectors over the image.
-    res_all = [(r, result.residuals[k]) for k, r in enumerate(result.view_indices)]
+    resid_views = result.residuals  # per used view, (N_i, 2)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1, 1.45]})
     cmap = plt.get_cmap("tab20")
-    for k, (_, r) in enumerate(res_all):
+    for k, r in enumerate(resid_views):
         a1.scatter(r[:, 0], r[:, 1], s=4, color=cmap(k % 20), alpha=0.7)
-    lim = max(float(np.nanmax(np.abs(np.concatenate([r for _, r in res_all])))) * 1.1, 1e-3)
+    lim = max(float(np.nanmax(np.abs(np.concatenate(resid_views)))) * 1.1, 1e-3)
     a1.set_xlim(-lim, lim)
     a1.set_ylim(lim, -lim)
     a1.set_aspect("equal")
@@ -158,7 +158,7 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     a1.set_ylabel("residual y (px)")
     a1.set_title(f"std x {result.std_px[0]:.3f} px, y {result.std_px[1]:.3f} px", fontsize=9)
     pts = _observed(result)
-    resid = np.concatenate([r for _, r in res_all])
+    resid = np.concatenate(resid_views)
     ok = np.isfinite(resid).all(axis=1) & np.isfinite(pts).all(axis=1)
     mag = np.hypot(*resid[ok].T)
     scale = 0.04 * W / max(float(np.percentile(mag, 95)) if mag.size else 1.0, 1e-9)

@@ -190,6 +190,12 @@ def test_bad_arguments_are_reported(tmp_path, capsys):
     assert "expected a name ending in .pdf, .svg or .png" in capsys.readouterr().err
 
 
+def test_demo_needs_three_views(tmp_path, capsys):
+    assert main(["demo", "-o", str(tmp_path / "d"), "--views", "2"]) == 1
+    assert "views: expected at least 3" in capsys.readouterr().err
+    assert not (tmp_path / "d").exists()  # refused before anything was written
+
+
 def test_no_command_prints_help(capsys):
     assert main([]) == 2
     assert "demo" in capsys.readouterr().out

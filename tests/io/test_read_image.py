@@ -139,3 +139,8 @@ def test_tiled_tiff_built_by_hand(tmp_path):
     (tmp_path / "tiled.tif").write_bytes(out)
     assert np.array_equal(np.asarray(Image.open(tmp_path / "tiled.tif")), img)  # the oracle agrees it is valid
     assert np.array_equal(read_image(tmp_path / "tiled.tif"), img)
+
+
+def test_path_must_be_a_name():
+    with pytest.raises(ImageFileError, match="path: expected a file name"):
+        read_image(123)
