@@ -176,11 +176,12 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     keep, rejected_views = [], []
     for i, (o, p) in enumerate(zip(objs, imgs, strict=True)):
         seen = np.isfinite(p).all(axis=1)
-        if seen.sum() < 4:
-            rejected_views.append((i, f"only {int(seen.sum())} corners (4 needed)"))
-        elif _collinear(o[seen, :2]):
-            rejected_views.append((i, f"the {int(seen.sum())} corners seen lie on one line"))
-        keep.append(not rejected_views or rejected_views[-1][0] != i)
+        n = int(seen.sum())
+        reason = (f"only {n} corners (4 needed)" if n < 4
+                  else f"the {n} corners seen lie on one line" if _collinear(o[seen, :2]) else None)
+        if reason:
+            rejected_views.append((i, reason))
+        keep.append(reason is None)
     if sum(keep) < (2 if "skew" not in {cls.param_names[i] for i in free} else 3):
         raise EstimationError(f"views: only {sum(keep)} views have 4 or more corners; calibration needs at least "
                               "3 (2 with skew held at 0) views of the board in different orientations")
