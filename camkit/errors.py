@@ -9,6 +9,8 @@ keeps working:
   length, NaN, a matrix that is not a rotation, an unknown option name).
 - :class:`EstimationError` (also ``RuntimeError``): an estimate cannot be made from the data
   given (too few points, degenerate views); the message names the cause and the fix.
+- :class:`ImageFileError` (also ``ValueError``): an image file that cannot be read (not an
+  image, damaged, or an unsupported variant); the message names the file and the reason.
 
 Messages name the argument, what was expected and what came, for example
 ``points_cam: expected shape (..., 3), got (17, 2)``.
@@ -16,7 +18,7 @@ Messages name the argument, what was expected and what came, for example
 
 from __future__ import annotations
 
-__all__ = ["CamkitError", "EstimationError", "ParameterError", "ShapeError"]
+__all__ = ["CamkitError", "EstimationError", "ImageFileError", "ParameterError", "ShapeError"]
 
 
 class CamkitError(Exception):
@@ -33,3 +35,7 @@ class ParameterError(CamkitError, ValueError):
 
 class EstimationError(CamkitError, RuntimeError):
     """An estimation cannot succeed with the data given."""
+
+
+class ImageFileError(CamkitError, ValueError):
+    """An image file cannot be read: not an image, damaged, or a variant not supported."""

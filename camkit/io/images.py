@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from camkit._validate import as_image
-from camkit.errors import CamkitError, ShapeError
+from camkit.errors import ImageFileError, ShapeError
 from camkit.io._atomic import write_atomic
 
 __all__ = ["IMAGE_SUFFIXES", "ImageFileError", "read_image", "write_png"]
@@ -51,10 +51,6 @@ def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:
 
 #: File name endings ``read_image`` understands.
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".pgm", ".ppm", ".pnm")
-
-
-class ImageFileError(CamkitError, ValueError):
-    """An image file that cannot be read: not an image, damaged, or a variant not supported."""
 
 
 def read_image(path: str | os.PathLike) -> np.ndarray:
