@@ -221,24 +221,27 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     tolerances = (1e-6, 1e-10) if reject_sigma is not None else (1e-10,)
     total_iterations = 0
     for rnd, tol in enumerate(tolerances):
+        final = rnd == len(tolerances) - 1
         cam, vposes, info = _levenberg_marquardt(cam, [objs[i] for i in views], [imgs[i] for i in views],
                                                  [poses[i] for i in views], mask, free, robust_loss, scale,
-                                                 max_iterations, tol)
+                                                 max_iterations, tol, covariance=final)
         total_iterations += info["iterations"]
         for k, i in enumerate(views):
             poses[i] = vposes[k]
-        if rnd == len(tolerances) - 1:
+        if final:
             break
-        norms = [np.hypot(*(_residual(cam, poses[i], objs[i], imgs[i]).T)) for i in views]
-        res = np.concatenate([r[m] for r, m in zip(norms, mask, strict=True)])
+        # The solver's residuals at its solution, stacked view by view over the corners in use.
+        res = np.hypot(info["residuals"][:, 0], info["residuals"][:, 1])
         sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
         limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
+        start = 0
         for k, i in enumerate(views):
-            r = norms[k]
-            bad = mask[k] & (r > limit)
-            for j in np.flatnonzero(bad):
-                rejected.append((i, int(j), f"residual {r[j]:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
-            mask[k] = mask[k] & ~bad
+            used = np.flatnonzero(mask[k])
+            r = res[start:start + len(used)]
+            start += len(used)
+            for j, rj in zip(used[r > limit], r[r > limit], strict=True):
+                rejected.append((i, int(j), f"residual {rj:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
+            mask[k][used[r > limit]] = False
     info["iterations"] = total_iterations
     return _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views)
 
@@ -313,7 +316,8 @@ def _normal_blocks(Jm, dp, RX, r, w, view, n_views):
                          np.ascontiguousarray(view, dtype=np.int64), n_views)
 
 
-def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations, tol=1e-10):
+def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_iterations, tol=1e-10,
+                         covariance=True):
     """Minimise the (weighted) squared reprojection error over free model parameters and poses.
 
     Pose updates: R <- exp([w]x) R, t <- t + dt (a local parametrisation of the rotation). All
@@ -400,17 +404,19 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
         message = f"stopped after {max_iterations} iterations without converging"
     # Marginal covariance of the intrinsics (unit noise): the inverse of the undamped Schur
     # complement of the (unweighted) normal equations.
-    U, W, V, _, _ = _normal_blocks(Jm, *Jp, r, np.ones(len(r)), view, n_views)
-    try:
-        S0 = U - np.einsum("vik,vkl,vjl->ij", W, np.linalg.inv(V), W)
-        cov_unit = np.linalg.inv(S0)
-    except np.linalg.LinAlgError:
-        cov_unit = np.full((n_free, n_free), np.nan)
+    cov_unit = np.full((n_free, n_free), np.nan)
+    if covariance:
+        U, W, V, _, _ = _normal_blocks(Jm, *Jp, r, np.ones(len(r)), view, n_views)
+        try:
+            S0 = U - np.einsum("vik,vkl,vjl->ij", W, np.linalg.inv(V), W)
+            cov_unit = np.linalg.inv(S0)
+        except np.linalg.LinAlgError:
+            pass
     poses = [Pose._unchecked(R, t) for R, t in zip(Rs, ts, strict=True)]
     # A fresh model: the one used in the loop knows its valid region only as far as the data.
     c = cls.from_params(p_model, width=cam.width, height=cam.height)
     return c, poses, {"converged": converged, "iterations": it, "cost": cost, "message": message,
-                      "cov_unit": cov_unit, "n_params": n_params}
+                      "cov_unit": cov_unit, "n_params": n_params, "residuals": r}
 
 
 def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views) -> CalibrationResult:
