@@ -7,6 +7,7 @@ names the argument, what was expected and what came.
 
 from __future__ import annotations
 
+import math
 import numbers
 from collections.abc import Sequence
 from typing import Any
@@ -134,6 +135,8 @@ def as_rotation_matrix(x: Any, name: str, *, batched: bool = False) -> np.ndarra
 
 def as_finite_float(x: Any, name: str) -> float:
     """Return ``x`` as a finite Python float."""
+    if type(x) is float and math.isfinite(x):  # the common case, without the ABC checks below
+        return x
     if isinstance(x, bool) or not isinstance(x, numbers.Real | np.ndarray):
         raise ParameterError(f"{name}: expected a finite real number, got {_kind_of(x)}")
     if isinstance(x, np.ndarray):

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit
 
@@ -56,3 +58,87 @@ def normal_blocks(Jm: np.ndarray, dp: np.ndarray, RX: np.ndarray, r: np.ndarray,
             for l in range(k):
                 V[v, k, l] = V[v, l, k]
     return U, W, V, gm, gp
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def dlt_normal(X: np.ndarray, u: np.ndarray):  # pragma: no cover - numba
+    """Hartley-normalised DLT for a plane-to-image homography in one pass over the points.
+
+    Returns ``(M, Tx, Tu, ok)``: ``M = A^T A`` (9, 9) of the DLT rows built from the
+    normalised points, the two normalising similarities (centroid to 0, mean distance to
+    sqrt 2), and ``ok`` False when either point set collapses to one point."""
+    n = X.shape[0]
+    Tx = np.eye(3)
+    Tu = np.eye(3)
+    if not (_hartley(X, Tx) and _hartley(u, Tu)):
+        return np.zeros((9, 9)), Tx, Tu, False
+    M = np.zeros((9, 9))
+    a = np.zeros(9)
+    b = np.zeros(9)
+    for i in range(n):
+        x = Tx[0, 0] * X[i, 0] + Tx[0, 2]
+        y = Tx[1, 1] * X[i, 1] + Tx[1, 2]
+        p = Tu[0, 0] * u[i, 0] + Tu[0, 2]
+        q = Tu[1, 1] * u[i, 1] + Tu[1, 2]
+        # rows [x y 1 0 0 0 -px -py -p] and [0 0 0 x y 1 -qx -qy -q]
+        a[0] = x
+        a[1] = y
+        a[2] = 1.0
+        a[6] = -p * x
+        a[7] = -p * y
+        a[8] = -p
+        b[3] = x
+        b[4] = y
+        b[5] = 1.0
+        b[6] = -q * x
+        b[7] = -q * y
+        b[8] = -q
+        for j in range(9):
+            aj = a[j]
+            bj = b[j]
+            for k in range(9):
+                M[j, k] += aj * a[k] + bj * b[k]
+    return M, Tx, Tu, True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _hartley(P: np.ndarray, T: np.ndarray) -> bool:  # pragma: no cover - numba
+    """Fill T with the similarity moving P's centroid to 0 and its mean distance to sqrt 2
+    (R. Hartley, IEEE TPAMI 19(6), 1997); False when the points coincide."""
+    n = P.shape[0]
+    cx = 0.0
+    cy = 0.0
+    for i in range(n):
+        cx += P[i, 0]
+        cy += P[i, 1]
+    cx /= n
+    cy /= n
+    d = 0.0
+    for i in range(n):
+        d += math.sqrt((P[i, 0] - cx) ** 2 + (P[i, 1] - cy) ** 2)
+    d /= n
+    if d < 1e-12:
+        return False
+    s = math.sqrt(2.0) / d
+    T[0, 0] = s
+    T[1, 1] = s
+    T[0, 2] = -s * cx
+    T[1, 2] = -s * cy
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rotate_views(Rs: np.ndarray, ts: np.ndarray, obj: np.ndarray, view: np.ndarray):  # pragma: no cover - numba
+    """``RX = R_v X`` and ``Xc = R_v X + t_v`` for stacked board points ``obj`` (N, 3) of views
+    ``view`` (N,), poses ``Rs`` (V, 3, 3), ``ts`` (V, 3)."""
+    N = obj.shape[0]
+    RX = np.empty((N, 3))
+    Xc = np.empty((N, 3))
+    for n in range(N):
+        v = view[n]
+        x, y, z = obj[n, 0], obj[n, 1], obj[n, 2]
+        for i in range(3):
+            a = Rs[v, i, 0] * x + Rs[v, i, 1] * y + Rs[v, i, 2] * z
+            RX[n, i] = a
+            Xc[n, i] = a + ts[v, i]
+    return RX, Xc

@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._kernels import calib as _kc
 from camkit._validate import as_points, as_positive_float, as_positive_int, check_choice
 from camkit.calib.detect import detect_corners
 from camkit.calib.homography import find_homography
@@ -260,17 +261,19 @@ def _linear_radial_start(cam: CameraModel, objs, imgs, poses, free) -> CameraMod
     names = {cam.param_names[i] for i in free}
     if not {"k1", "k2"} <= names or cam.name != "brown-conrady":
         return cam
-    rows, rhs = [], []
-    for o, p, pose in zip(objs, imgs, poses, strict=True):
-        X = pose.apply(o)
-        x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
-        r2 = x * x + y * y
-        u = cam.fx * x + cam.cx
-        v = cam.fy * y + cam.cy
-        ok = np.isfinite(p).all(axis=1)
-        rows += [np.stack([(u - cam.cx) * r2, (u - cam.cx) * r2 * r2], -1)[ok],
-                 np.stack([(v - cam.cy) * r2, (v - cam.cy) * r2 * r2], -1)[ok]]
-        rhs += [(p[:, 0] - u)[ok], (p[:, 1] - v)[ok]]
+    # All views at once: the points of view v are R_v X + t_v.
+    view = np.repeat(np.arange(len(objs), dtype=np.int64), [len(o) for o in objs])
+    Rs = np.array([pose.R for pose in poses])
+    ts = np.array([pose.t for pose in poses])
+    _, X = _kc.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate(objs), dtype=np.float64), view)
+    p = np.concatenate(imgs)
+    ok = np.isfinite(p).all(axis=1)
+    X, p = X[ok], p[ok]
+    x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+    r2 = x * x + y * y
+    du, dv = cam.fx * x, cam.fy * y  # ideal pixel minus the principal point
+    rows = [np.stack([du * r2, du * r2 * r2], -1), np.stack([dv * r2, dv * r2 * r2], -1)]
+    rhs = [p[:, 0] - cam.cx - du, p[:, 1] - cam.cy - dv]
     k = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
     try:
         return cam.replace(k1=float(k[0]), k2=float(k[1]))
@@ -290,8 +293,10 @@ def _weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
 def _seed_valid_radius(model: CameraModel, points_cam: np.ndarray) -> None:
     """Inside the solver a Brown-Conrady model needs to be one-to-one only as far out as the
     points it projects: scan the disk up to 2 % beyond the farthest point's ideal radius
-    (128 steps: finer than the default scan's 512 over three times the image corner's radius)
-    and record that as the model's valid radius. Only for the solver's own trial models; the
+    (32 directions, 64 steps, each failing step bisected: the solver evaluates its trial
+    models a dozen times per fit, so the scan is kept cheap; the default scan, 64 x 512 over
+    three times the image corner's radius, is for the model returned) and record that as the
+    model's valid radius. Only for the solver's own trial models; the
     model returned is built fresh."""
     from camkit._kernels import brown_conrady as _kb
 
@@ -302,7 +307,7 @@ def _seed_valid_radius(model: CameraModel, points_cam: np.ndarray) -> None:
     coeffs = model._coeffs()
     if r.size == 0 or not coeffs.any():
         return
-    model._cache["r_valid"] = float(_kb.valid_radius(coeffs, 1.02 * float(r.max()), 64, 128))
+    model._cache["r_valid"] = float(_kb.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))
 
 
 def _normal_blocks(Jm, dp, RX, r, w, view, n_views):
@@ -331,7 +336,8 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
     cls = type(cam)
     obj = np.concatenate([o[m] for o, m in zip(objs, mask, strict=True)])
     img = np.concatenate([p[m] for p, m in zip(imgs, mask, strict=True)])
-    view = np.concatenate([np.full(int(m.sum()), k) for k, m in enumerate(mask)])
+    view = np.repeat(np.arange(len(mask), dtype=np.int64), [int(m.sum()) for m in mask])
+    obj = np.ascontiguousarray(obj, dtype=np.float64)
     n_pts = len(obj)
     if n_params > 2 * n_pts:
         raise EstimationError(f"points: {n_pts} corners cannot determine {n_params} unknowns; use more views "
@@ -342,8 +348,7 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
 
     def evaluate(p_model, Rs, ts):
         c = cls.from_params(p_model, width=cam.width, height=cam.height)
-        RX = np.einsum("nij,nj->ni", Rs[view], obj)
-        Xc = RX + ts[view]
+        RX, Xc = _kc.rotate_views(Rs, ts, obj, view)
         if cls.name == "brown-conrady":
             _seed_valid_radius(c, Xc)
         uv, dp, dk = c.project_with_jacobian(Xc)
@@ -420,17 +425,25 @@ def _levenberg_marquardt(cam, objs, imgs, poses, mask, free, loss, scale, max_it
 
 
 def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_views) -> CalibrationResult:
+    # Every view's residuals from one projection of all the points.
+    counts = [len(objs[i]) for i in views]
+    view = np.repeat(np.arange(len(views), dtype=np.int64), counts)
+    Rs = np.array([poses[i].R for i in views])
+    ts = np.array([poses[i].t for i in views])
+    _, Xc = _kc.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate([objs[i] for i in views]),
+                                                          dtype=np.float64), view)
+    used = np.concatenate(mask)
+    res = cam.project(Xc) - np.concatenate([imgs[i] for i in views])
+    res[~used] = np.nan
     residuals = [np.full_like(imgs[i], np.nan) for i in range(len(imgs))]
-    all_r = []
-    view_rms = np.full(len(imgs), np.nan)
-    for k, i in enumerate(views):
-        r = _residual(cam, poses[i], objs[i], imgs[i])
-        r[~mask[k]] = np.nan
+    for i, r in zip(views, np.split(res, np.cumsum(counts)[:-1]), strict=True):
         residuals[i] = r
-        good = r[mask[k]]
-        all_r.append(good)
-        view_rms[i] = float(np.sqrt((good**2).mean())) if len(good) else np.nan
-    R = np.concatenate(all_r)
+    sq = np.where(used, (res**2).sum(axis=1), 0.0)
+    n_used = np.bincount(view, weights=used, minlength=len(views))
+    view_rms = np.full(len(imgs), np.nan)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        view_rms[views] = np.sqrt(np.bincount(view, weights=sq, minlength=len(views)) / n_used)
+    R = res[used]
     dof = max(R.size - info["n_params"], 1)
     sigma2 = float((R**2).sum() / dof)
     cov = info["cov_unit"] * sigma2

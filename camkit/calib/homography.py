@@ -6,20 +6,11 @@ from typing import Any
 
 import numpy as np
 
+from camkit._kernels import calib as _kc
 from camkit._validate import as_points
 from camkit.errors import EstimationError, ShapeError
 
 __all__ = ["find_homography"]
-
-
-def _normaliser(p: np.ndarray) -> np.ndarray:
-    """Similarity moving the centroid to 0 and the mean distance to sqrt(2) (Hartley 1997)."""
-    c = p.mean(axis=0)
-    d = np.sqrt(((p - c) ** 2).sum(axis=1)).mean()
-    if d < 1e-12:
-        raise EstimationError("points: all points coincide; a homography needs at least 4 spread points")
-    s = np.sqrt(2.0) / d
-    return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
 
 
 def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> np.ndarray:
@@ -46,7 +37,27 @@ def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> n
     n = X.shape[0]
     if n < 4:
         raise EstimationError(f"points: a homography needs at least 4 correspondences, got {n}")
-    Tx, Tu = _normaliser(X), _normaliser(u)
+    M, Tx, Tu, ok = _kc.dlt_normal(X, u)
+    if not ok:
+        raise EstimationError("points: all points coincide; a homography needs at least 4 spread points")
+    # The null vector of A from the 9x9 normal matrix (eigh: ~15 us, against ~90 us for the
+    # SVD of the 2N x 9 matrix A). Its eigenvalues are the squared singular values, known
+    # only to ~1e-16 of the largest, so a near-degenerate set is decided on A's SVD.
+    lam, vec = np.linalg.eigh(M)
+    if lam[1] < 1e-10 * lam[8]:
+        Hn = _dlt_svd(X, u, Tx, Tu)
+    else:
+        Hn = vec[:, 0].reshape(3, 3)
+    H = np.linalg.solve(Tu, Hn @ Tx)
+    H = H / H[2, 2] if abs(H[2, 2]) > 1e-12 * np.abs(H).max() else H / np.linalg.norm(H)
+    if refine:
+        H = _refine(H, X, u)
+    return H
+
+
+def _dlt_svd(X: np.ndarray, u: np.ndarray, Tx: np.ndarray, Tu: np.ndarray) -> np.ndarray:
+    """The normalised DLT's solution from the SVD of A, with the degeneracy test."""
+    n = len(X)
     Xn = X @ Tx[:2, :2].T + Tx[:2, 2]
     un = u @ Tu[:2, :2].T + Tu[:2, 2]
     A = np.zeros((2 * n, 9))
@@ -62,12 +73,7 @@ def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> n
     if s[-2] < 1e-9 * s[0]:
         raise EstimationError("points: degenerate configuration (collinear points?); a homography needs "
                               "at least 4 points, no 3 of them on a line")
-    Hn = vt[-1].reshape(3, 3)
-    H = np.linalg.solve(Tu, Hn @ Tx)
-    H = H / H[2, 2] if abs(H[2, 2]) > 1e-12 * np.abs(H).max() else H / np.linalg.norm(H)
-    if refine:
-        H = _refine(H, X, u)
-    return H
+    return vt[-1].reshape(3, 3)
 
 
 def _project(h: np.ndarray, X: np.ndarray) -> np.ndarray:

@@ -65,16 +65,17 @@ def poses_from_homographies(K: np.ndarray, homographies: list[np.ndarray]) -> li
     """``cam_from_target`` of each view: ``r1 = l K^-1 h1, r2 = l K^-1 h2, r3 = r1 x r2,
     t = l K^-1 h3`` with ``l = 1 / |K^-1 h1|``, the board in front of the camera, and R the
     nearest rotation (Zhang 2000, sec. 3.1 and appendix C)."""
-    Kinv = np.linalg.inv(K)
-    poses = []
-    for H in homographies:
-        A = Kinv @ H
-        lam = 1.0 / np.linalg.norm(A[:, 0])
-        if A[2, 2] * lam < 0:  # the board must be in front of the camera (t_z > 0)
-            lam = -lam
-        r1, r2, t = lam * A[:, 0], lam * A[:, 1], lam * A[:, 2]
-        R = np.stack([r1, r2, np.cross(r1, r2)], axis=1)
-        u, _, vt = np.linalg.svd(R)
-        R = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
-        poses.append(Pose._unchecked(R, t))  # R is a rotation by construction (SVD above)
+    if len(homographies) == 0:
+        return []
+    A = np.linalg.inv(K) @ np.asarray(homographies, dtype=np.float64)  # all views at once
+    lam = 1.0 / np.linalg.norm(A[:, :, 0], axis=1)
+    lam = np.where(A[:, 2, 2] * lam < 0, -lam, lam)  # the board in front of the camera (t_z > 0)
+    r1, r2, t = lam[:, None] * A[:, :, 0], lam[:, None] * A[:, :, 1], lam[:, None] * A[:, :, 2]
+    R = np.stack([r1, r2, np.cross(r1, r2)], axis=2)
+    u, _, vt = np.linalg.svd(R)
+    D = np.ones((len(R), 3))
+    D[:, 2] = np.linalg.det(u @ vt)
+    R = (u * D[:, None, :]) @ vt
+    # R is a rotation by construction (SVD above)
+    poses = [Pose._unchecked(Ri, ti) for Ri, ti in zip(R, t, strict=True)]
     return poses
