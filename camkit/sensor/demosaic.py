@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from camkit._kernels import demosaic as _kd
+from camkit._kernels import menon as _km
 from camkit._validate import as_image, check_choice
 from camkit.errors import ShapeError
 from camkit.resample.remap import new_image
@@ -74,14 +75,7 @@ def demosaic(raw: np.ndarray, pattern: str = "RGGB", method: str = "menon") -> n
         else:
             _kd.malvar(src, code, is_int, hi, out)
         return out
-    # Menon: float planes (float64 for float64 input, else float32).
-    cfa = src.astype(np.float64 if img.dtype == np.float64 else np.float32)
-    gh, gv, dh, dv, g = (np.empty_like(cfa) for _ in range(5))
-    horiz = np.empty((H, W), dtype=np.bool_)
-    _kd.menon_green(cfa, code, gh, gv, dh, dv)
-    _kd.menon_decide(gh, gv, dh, dv, g, horiz)
-    r, b = dh, dv  # the gradients are spent: their planes take red and blue
-    _kd.menon_colour(cfa, code, g, horiz, r, b)
-    _kd.menon_refine(code, horiz, g, r, b)
-    _kd.assemble(r, g, b, is_int, hi, out)
+    # Menon: one streaming pass over ring buffers; float32 arithmetic, float64 for float64 input.
+    consts = np.array([0.5, 0.25, 3.0], dtype=np.float64 if img.dtype == np.float64 else np.float32)
+    _km.menon(src, code, consts, is_int, hi, out)
     return out

@@ -133,3 +133,20 @@ def test_integer_kernels_equal_the_float_formulas(dtype, shape):
             ref = np.empty((*shape, 3), dtype)
             kernel(raw, pattern_code(pattern), True, float(hi), ref)
             assert np.array_equal(demosaic(raw, pattern, method=method), ref), (pattern, method)
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.float32, np.float64])
+def test_menon_strips_agree_with_one_pass(dtype):
+    # The streaming kernel cuts the image into horizontal strips (min(H // 64, 8) of them) and
+    # starts each strip's pipeline early; the rows must not depend on where the cuts fall.
+    # The 256-row image runs as 4 strips, its top 128 rows as 2 and its top 64 as 1; away
+    # from the cropped images' bottom border (each stage reaches ~10 rows) all agree exactly.
+    rng = np.random.default_rng(7)
+    rgb = _smooth_rgb(256, 90)
+    rgb = np.clip(rgb + 0.05 * rng.standard_normal(rgb.shape), 0, 1)
+    raw = mosaic(rgb, "GRBG")
+    raw = (raw * 255).round().astype(np.uint8) if dtype == np.uint8 else raw.astype(dtype)
+    full = demosaic(raw, "GRBG", "menon")
+    for rows in (128, 64):
+        part = demosaic(raw[:rows], "GRBG", "menon")
+        assert np.array_equal(part[: rows - 16], full[: rows - 16]), rows
