@@ -99,3 +99,41 @@ def vertical_horizontal(src: np.ndarray, sy: np.ndarray, wy: np.ndarray, sx: np.
         acc = np.full(L, zero)
         _vertical_row(src, sy[j], wy[j], zero, acc)
         _horizontal_row(acc, sx, wx, C, zero, is_int, hi, out[j].reshape(-1))
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy", fastmath={"contract"})
+def horizontal_vertical(src: np.ndarray, sy: np.ndarray, wy: np.ndarray, sx: np.ndarray, wx: np.ndarray, zero,
+                        is_int: bool, hi: float, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Both passes when not shrinking vertically: each input row of src (H_in, W_in, C) is
+    filtered horizontally once into a ring of K + 1 rows, and each output row of out
+    (H_out, W_out, C) is the vertical sum of the K ring rows it needs (``sy`` never
+    decreases, so a row leaves the ring only once no later output row needs it). Output
+    rows are cut into strips run in parallel, each with its own ring."""
+    H_out = out.shape[0]
+    C = out.shape[2]
+    L = out.shape[1] * C
+    K = wy.shape[1]
+    R = K + 1
+    T = type(zero)
+    n_strips = max(1, min(H_out // 16, 64))
+    for s in prange(n_strips):
+        j0 = (H_out * s) // n_strips
+        j1 = (H_out * (s + 1)) // n_strips
+        ring = np.empty((R, L), type(zero))
+        acc = np.empty(L, type(zero))
+        nxt = sy[j0]
+        for j in range(j0, j1):
+            while nxt < sy[j] + K:
+                _horizontal_row(src[nxt].reshape(-1), sx, wx, C, zero, False, 0.0, ring[nxt % R])
+                nxt += 1
+            for i in range(L):
+                acc[i] = zero
+            for k in range(K):
+                w = T(wy[j, k])
+                if w != 0:
+                    row = ring[(sy[j] + k) % R]
+                    for i in range(L):
+                        acc[i] += w * row[i]
+            orow = out[j].reshape(-1)
+            for i in range(L):
+                orow[i] = _store(acc[i], is_int, hi)

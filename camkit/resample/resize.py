@@ -110,11 +110,9 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
     out = new_image((h, w, C), img.dtype)
     # The vertical pass runs along whole rows (vectorised); the horizontal pass is the costly
     # one, so it runs on whichever has fewer rows: per output row, straight from the vertical
-    # sum, when shrinking vertically; on the input rows first otherwise.
+    # sum, when shrinking vertically; once per input row, into a ring of rows, otherwise.
     if h < H:
         _kz.vertical_horizontal(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out)
     else:
-        mid = np.empty((H, w, C), dtype=zero.dtype)
-        _kz.horizontal(img3, sx, wx, zero, False, 0.0, mid)
-        _kz.vertical(mid.reshape(H, w * C), sy, wy, zero, is_int, hi, out.reshape(h, w * C))
+        _kz.horizontal_vertical(img3, sy, wy, sx, wx, zero, is_int, hi, out)
     return out if img.ndim == 3 else out[:, :, 0]
