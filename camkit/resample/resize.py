@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from camkit._kernels import resize as _kz
@@ -64,6 +66,62 @@ def resize_weights(n_in: int, n_out: int, interpolation: str, *, antialias: bool
     return starts, np.ascontiguousarray(out_w[:, :K_eff])
 
 
+_FUSED: dict[tuple[int, int, int], Any] = {}
+#: Tap counts the shrinking kernel is compiled for; a table is padded with zero taps up to
+#: the next one (a handful of variants, not one per output size).
+_TAPS = (1, 2, 4, 8, 12, 16, 24, 32)
+
+
+def _fused_kernel(ky: int, kx: int, c: int) -> Any:
+    """The shrinking kernel for (vertical taps, shared horizontal taps or 0, channels), built
+    on first use (numba caches it on disk)."""
+    key = (ky, kx, c)
+    if key not in _FUSED:
+        _FUSED[key] = _kz.make_vertical_horizontal(*key)
+    return _FUSED[key]
+
+
+def _padded(starts: np.ndarray, weights: np.ndarray, n_in: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """The table with its windows widened (zero taps) to the next count in ``_TAPS`` and moved
+    to stay inside the input; None where that count exceeds the input or the largest."""
+    K = weights.shape[1]
+    K_new = next((t for t in _TAPS if t >= K), None)
+    if K_new is None or K_new > n_in:
+        return None
+    if K_new == K:
+        return starts, weights
+    new_starts = np.minimum(starts, n_in - K_new)
+    out = np.zeros((len(starts), K_new))
+    shift = starts - new_starts
+    for d in np.unique(shift):
+        rows = shift == d
+        out[rows, d:d + K] = weights[rows]
+    return new_starts, out
+
+
+def _shared_weights(starts: np.ndarray, weights: np.ndarray, n_in: int,
+                    n_out: int) -> tuple[np.ndarray, int, int, int, int]:
+    """For an integer shrink factor s = n_in / n_out, the outputs away from the borders share
+    one row of weights and start at ``s * c + first``: returns ``(weights, s, first, c0, c1)``
+    for the longest such run of outputs c0..c1-1 around the middle (c0 == c1 when there is
+    none), which the kernels filter at the full input rate in SIMD (see
+    ``_kernels.resize._decimate_row``)."""
+    none = (weights[0], 1, 0, 0, 0)
+    if n_in % n_out or n_in // n_out < 2 or n_out < 8:
+        return none
+    s = n_in // n_out
+    mid = n_out // 2
+    first = int(starts[mid]) - s * mid
+    c = np.arange(n_out)
+    same = (starts == s * c + first) & (np.abs(weights - weights[mid]).max(axis=1) <= 1e-12)
+    if not same[mid]:
+        return none
+    bad = np.flatnonzero(~same)
+    c0 = int(bad[bad < mid].max()) + 1 if (bad < mid).any() else 0
+    c1 = int(bad[bad > mid].min()) if (bad > mid).any() else n_out
+    return np.ascontiguousarray(weights[mid]), s, first, c0, c1
+
+
 def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "bicubic",
            antialias: bool = True, bicubic_a: float = DEFAULT_BICUBIC_A) -> np.ndarray:
     """Resize an image to ``width x height``.
@@ -112,7 +170,14 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
     # one, so it runs on whichever has fewer rows: per output row, straight from the vertical
     # sum, when shrinking vertically; once per input row, into a ring of rows, otherwise.
     if h < H:
-        _kz.vertical_horizontal(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out)
+        pw, step, first, c0, c1 = _shared_weights(sx, wx, W, w)
+        padded = _padded(sy, wy, H)
+        if padded is not None and (c0 == c1 or len(pw) in _TAPS):
+            sy, wy = padded
+            kernel = _fused_kernel(wy.shape[1], len(pw) if c0 < c1 else 0, C)
+            kernel(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out, pw, step, first, c0, c1)
+        else:  # very long kernels (large shrink factors): the tables, taps unknown to the compiler
+            _kz.vertical_horizontal(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out)
     else:
         _kz.horizontal_vertical(img3, sy, wy, sx, wx, zero, is_int, hi, out)
     return out if img.ndim == 3 else out[:, :, 0]
