@@ -66,16 +66,17 @@ def resize_weights(n_in: int, n_out: int, interpolation: str, *, antialias: bool
     return starts, np.ascontiguousarray(out_w[:, :K_eff])
 
 
-_FUSED: dict[tuple[int, int, int], Any] = {}
+_FUSED: dict[tuple[int, int, int, int], Any] = {}
 #: Tap counts the shrinking kernel is compiled for; a table is padded with zero taps up to
 #: the next one (a handful of variants, not one per output size).
 _TAPS = (1, 2, 4, 8, 12, 16, 24, 32)
 
 
-def _fused_kernel(ky: int, kx: int, c: int) -> Any:
-    """The shrinking kernel for (vertical taps, shared horizontal taps or 0, channels), built
-    on first use (numba caches it on disk)."""
-    key = (ky, kx, c)
+def _fused_kernel(ky: int, kx: int, c: int, step: int) -> Any:
+    """The shrinking kernel for (vertical taps, shared horizontal taps or 0, channels, shrink
+    factor), built on first use (numba caches it on disk); factors above 4 are passed at run
+    time instead of compiled in (a known stride lets the output loop vectorise: 2x)."""
+    key = (ky, kx, c, step if kx and step <= 4 else 0)
     if key not in _FUSED:
         _FUSED[key] = _kz.make_vertical_horizontal(*key)
     return _FUSED[key]
@@ -174,7 +175,7 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
         padded = _padded(sy, wy, H)
         if padded is not None and (c0 == c1 or len(pw) in _TAPS):
             sy, wy = padded
-            kernel = _fused_kernel(wy.shape[1], len(pw) if c0 < c1 else 0, C)
+            kernel = _fused_kernel(wy.shape[1], len(pw) if c0 < c1 else 0, C, step)
             kernel(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out, pw, step, first, c0, c1)
         else:  # very long kernels (large shrink factors): the tables, taps unknown to the compiler
             _kz.vertical_horizontal(img3.reshape(H, W * C), sy, wy, sx, wx, zero, is_int, hi, out)
