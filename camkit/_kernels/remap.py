@@ -210,11 +210,19 @@ def _make_bilinear_u8c3(KIND: int):
         flat = img.reshape(-1)
         W3 = W * 3
         Ho, Wo = out.shape[0], out.shape[1]
+        u1 = np.uint64(1)
+        u2 = np.uint64(2)
+        u3 = np.uint64(3)
+        u4 = np.uint64(4)
+        u5 = np.uint64(5)
+        uW3 = np.uint64(W3)
         for r in prange(Ho):
-            off = np.empty(Wo, np.int64)
+            off = np.empty(Wo, np.uint64)
             wx = np.empty(Wo, np.int32)
             wy = np.empty(Wo, np.int32)
             ok = np.empty(Wo, np.bool_)
+            # Phase 1, branch-free (selects, so it vectorises): a pixel whose taps leave the
+            # image (or NaN) gets offset 0 and weights 0 and is redone in phase 2's slow path.
             for c in range(Wo):
                 if KIND == 0:
                     x, y = from_map(mp, r, c)
@@ -222,30 +230,37 @@ def _make_bilinear_u8c3(KIND: int):
                     x, y = from_affine(mp, r, c)
                 else:
                     x, y = from_perspective(mp, r, c)
+                F = type(x)
                 fx = np.floor(x)
                 fy = np.floor(y)
-                inside = (fx >= 0) & (fy >= 0) & (fx < W - 1) & (fy < H - 1)  # NaN: False
-                ix = np.int64(fx) if inside else 0
-                iy = np.int64(fy) if inside else 0
+                inside = (fx >= F(0)) & (fy >= F(0)) & (fx < F(W - 1)) & (fy < F(H - 1))  # NaN: False
+                gx = fx if inside else F(0)
+                gy = fy if inside else F(0)
                 ok[c] = inside
-                off[c] = iy * W3 + ix * 3
-                wx[c] = np.int32((x - fx) * 2048.0 + 0.5) if inside else 0
-                wy[c] = np.int32((y - fy) * 2048.0 + 0.5) if inside else 0
+                off[c] = np.uint64(np.int64(gy) * W3 + np.int64(gx) * 3)
+                # (x - floor x) * 2048 + 0.5 is exact in float32 too: no rounding to differ
+                tx = np.int32((x - gx) * F(2048.0) + F(0.5))
+                ty = np.int32((y - gy) * F(2048.0) + F(0.5))
+                wx[c] = tx if inside else 0
+                wy[c] = ty if inside else 0
             orow = out[r]
             for c in range(Wo):
                 if ok[c]:
+                    # unsigned offsets: no wrap-around test per load
                     p = off[c]
-                    q = p + W3
+                    q = p + uW3
                     ax = wx[c]
                     ay = wy[c]
                     w11 = ax * ay
                     w10 = (2048 - ax) * ay
                     w01 = ax * (2048 - ay)
                     w00 = (2048 - ax) * (2048 - ay)
-                    for ch in range(3):
-                        orow[c, ch] = (w00 * np.int32(flat[p + ch]) + w01 * np.int32(flat[p + 3 + ch])
-                                       + w10 * np.int32(flat[q + ch]) + w11 * np.int32(flat[q + 3 + ch])
-                                       + (1 << 21)) >> 22
+                    orow[c, 0] = (w00 * np.int32(flat[p]) + w01 * np.int32(flat[p + u3])
+                                  + w10 * np.int32(flat[q]) + w11 * np.int32(flat[q + u3]) + (1 << 21)) >> 22
+                    orow[c, 1] = (w00 * np.int32(flat[p + u1]) + w01 * np.int32(flat[p + u4])
+                                  + w10 * np.int32(flat[q + u1]) + w11 * np.int32(flat[q + u4]) + (1 << 21)) >> 22
+                    orow[c, 2] = (w00 * np.int32(flat[p + u2]) + w01 * np.int32(flat[p + u5])
+                                  + w10 * np.int32(flat[q + u2]) + w11 * np.int32(flat[q + u5]) + (1 << 21)) >> 22
                 else:
                     if KIND == 0:
                         x, y = from_map(mp, r, c)
