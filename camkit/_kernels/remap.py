@@ -208,8 +208,8 @@ def _make_bilinear_u8c3(KIND: int):
     gathers and blends in int32, rounding to nearest ((sum + 2^21) >> 22), and sends the
     pixels whose taps leave the image through the border rules (a separate loop for those,
     leaving the gather loop without a branch, measured 8% slower: 81 against 76 ms). The
-    fixed-point
-    weights are within 2^-12 of the exact ones: at most 1 grey level from float arithmetic."""
+    fixed-point weights are within 2^-12 of the exact ones: at most 1 grey level from float
+    arithmetic."""
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
     def kernel(img, mp, a, border, fill, is_int, lo, hi, zero, out):  # pragma: no cover
