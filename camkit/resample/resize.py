@@ -106,8 +106,8 @@ def _shared_weights(starts: np.ndarray, weights: np.ndarray, n_in: int,
     """For an integer shrink factor s = n_in / n_out, the outputs away from the borders share
     one row of weights and start at ``s * c + first``: returns ``(weights, s, first, c0, c1)``
     for the longest such run of outputs c0..c1-1 around the middle (c0 == c1 when there is
-    none), which the kernels filter at the full input rate in SIMD (see
-    ``_kernels.resize._decimate_row``)."""
+    none), which the kernel filters at the full input rate in SIMD (see
+    ``_kernels.resize.make_vertical_horizontal``)."""
     none = (weights[0], 1, 0, 0, 0)
     if n_in % n_out or n_in // n_out < 2 or n_out < 8:
         return none
