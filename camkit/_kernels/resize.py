@@ -85,6 +85,9 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
         T = type(zero)
         L = src.shape[1]
         Wo = out.shape[1]
+        v = np.empty(max(KX, 1), type(zero))  # the shared horizontal weights, once per call
+        for k in range(KX):
+            v[k] = T(pw[k])
         for j in prange(out.shape[0]):
             w = np.empty(KY, type(zero))
             for k in range(KY):
@@ -98,9 +101,6 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                 acc[i] = a
             orow = out[j].reshape(-1)
             if KX > 0 and c0 < c1:
-                v = np.empty(KX, type(zero))
-                for k in range(KX):
-                    v[k] = T(pw[k])
                 stp = STEP if STEP > 0 else step
                 n = (stp * (c1 - 1 - c0) + 1) * C
                 seg = acc[(stp * c0 + first) * C:]

@@ -252,8 +252,12 @@ def _collinear(xy: np.ndarray) -> bool:
     return bool(s[1] <= 1e-6 * s[0])
 
 
-def _residual(cam: CameraModel, pose: Pose, obj: np.ndarray, img: np.ndarray) -> np.ndarray:
-    return cam.project(pose.apply(obj)) - img
+def _stacked_points(objs: list[np.ndarray], poses: list[Pose]) -> np.ndarray:
+    """Every view's board points in its camera frame, stacked view by view (one kernel call)."""
+    view = np.repeat(np.arange(len(objs), dtype=np.int64), [len(o) for o in objs])
+    Rs = np.array([pose.R for pose in poses])
+    ts = np.array([pose.t for pose in poses])
+    return _kc.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate(objs), dtype=np.float64), view)[1]
 
 
 def _linear_radial_start(cam: CameraModel, objs, imgs, poses, free) -> CameraModel:
@@ -261,11 +265,7 @@ def _linear_radial_start(cam: CameraModel, objs, imgs, poses, free) -> CameraMod
     names = {cam.param_names[i] for i in free}
     if not {"k1", "k2"} <= names or cam.name != "brown-conrady":
         return cam
-    # All views at once: the points of view v are R_v X + t_v.
-    view = np.repeat(np.arange(len(objs), dtype=np.int64), [len(o) for o in objs])
-    Rs = np.array([pose.R for pose in poses])
-    ts = np.array([pose.t for pose in poses])
-    _, X = _kc.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate(objs), dtype=np.float64), view)
+    X = _stacked_points(objs, poses)  # all views at once
     p = np.concatenate(imgs)
     ok = np.isfinite(p).all(axis=1)
     X, p = X[ok], p[ok]
@@ -296,8 +296,8 @@ def _seed_valid_radius(model: CameraModel, points_cam: np.ndarray) -> None:
     (32 directions, 64 steps, each failing step bisected: the solver evaluates its trial
     models a dozen times per fit, so the scan is kept cheap; the default scan, 64 x 512 over
     three times the image corner's radius, is for the model returned) and record that as the
-    model's valid radius. Only for the solver's own trial models; the
-    model returned is built fresh."""
+    model's valid radius. Only for the solver's own trial models; the model returned is built
+    fresh."""
     from camkit._kernels import brown_conrady as _kb
 
     z = points_cam[:, 2]
@@ -428,10 +428,7 @@ def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_
     # Every view's residuals from one projection of all the points.
     counts = [len(objs[i]) for i in views]
     view = np.repeat(np.arange(len(views), dtype=np.int64), counts)
-    Rs = np.array([poses[i].R for i in views])
-    ts = np.array([poses[i].t for i in views])
-    _, Xc = _kc.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate([objs[i] for i in views]),
-                                                          dtype=np.float64), view)
+    Xc = _stacked_points([objs[i] for i in views], [poses[i] for i in views])
     used = np.concatenate(mask)
     res = cam.project(Xc) - np.concatenate([imgs[i] for i in views])
     res[~used] = np.nan
