@@ -17,7 +17,7 @@ img = np.zeros((8, 8, 3), np.uint8)
 remap(img, np.zeros((4, 4, 2), np.float32))                   # uint8 RGB bilinear kernel
 remap(img.astype(np.float32), np.zeros((4, 4, 2)), interpolation="bicubic")
 warp_perspective(img, np.eye(3), width=4, height=4, interpolation="lanczos3")
-used = [kr.BILINEAR_U8C3["map"], kr.REMAP[2], kr.WARP_PERSPECTIVE[3]]
+used = [kr.BILINEAR_U8C3["map"].main, kr.REMAP[2], kr.WARP_PERSPECTIVE[3]]
 print(json.dumps([[sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())] for d in used]))
 """
 
