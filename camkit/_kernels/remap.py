@@ -209,8 +209,9 @@ def _make_bilinear_u8c3(KIND: int):
     pixels whose taps leave the image take the border rules in phase 2 itself; for the warps,
     phase 2 writes the fill value and the pixels that need the border rules are redone by a
     second kernel, ``fix`` (that slow path anywhere in the warps' first kernel, even in a
-    loop of its own, cost it 10-15%; in the map's, measured, it costs nothing). The fixed-point weights are within
-    2^-12 of the exact ones: at most 1 grey level from float arithmetic."""
+    loop of its own, cost it 10-15%; in the map's, measured, it costs nothing). The
+    fixed-point weights are within 2^-12 of the exact ones: at most 1 grey level from float
+    arithmetic."""
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
     def main(img, mp, border, fill, fill_far, todo_all, row_ok, out):  # pragma: no cover
@@ -252,8 +253,9 @@ def _make_bilinear_u8c3(KIND: int):
             by = F32(m11 * r + m12)
             bw = F32(m21 * r + m22)
             # Phase 1, branch-free (selects, so it vectorises): a pixel whose taps leave the
-            # image (or NaN) gets offset 0 and weights 0; phase 2 gives it the fill value, and
-            # where the border rules apply instead (nd) fix redoes it.
+            # image (or NaN) gets offset 0 and weights 0 and is not ok; phase 2 takes it through
+            # the border rules (map) or gives it the fill value, which fix replaces where
+            # the border rules apply (nd; warps).
             for c in range(Wo):
                 if KIND == 0:
                     x, y = from_map(mp, r, c)
