@@ -202,6 +202,21 @@ def border_bilinear(img, x, y, border, fill, ch):  # pragma: no cover
     return acc
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def border_pixel_u8c3(img, x, y, border, fill, px):  # pragma: no cover
+    """One uint8 RGB output pixel ``px`` at (x, y), bilinear, through the border rules."""
+    H, W = img.shape[0], img.shape[1]
+    # NaN, far away, or (constant border) every tap outside: the fill value.
+    far = not (abs(x) < 1e9 and abs(y) < 1e9) or (
+        border == 0 and (x <= -1.0 or y <= -1.0 or x >= W or y >= H))
+    for ch in range(3):
+        if far:
+            v = fill[ch]
+        else:
+            v = border_bilinear(img, np.float64(x), np.float64(y), border, fill, ch)
+        px[ch] = store(v, True, 0.0, 255.0)
+
+
 def _make_bilinear_u8c3(KIND: int):
     """uint8 RGB, bilinear: the common case, in two phases per row. Phase 1 turns
     coordinates into flat offsets and 11-bit fixed-point weights (vectorisable); phase 2
@@ -312,14 +327,7 @@ def _make_bilinear_u8c3(KIND: int):
                                   + w10 * np.int32(flat[q + u2]) + w11 * np.int32(flat[q + u5]) + (1 << 21)) >> 22
                 elif KIND == 0:
                     x, y = from_map(mp, r, c)
-                    far = not (abs(x) < 1e9 and abs(y) < 1e9) or (
-                        border == 0 and (x <= -1.0 or y <= -1.0 or x >= W or y >= H))
-                    for ch in range(3):
-                        if far:
-                            v = fill[ch]
-                        else:
-                            v = border_bilinear(img, np.float64(x), np.float64(y), border, fill, ch)
-                        orow[c, ch] = store(v, True, 0.0, 255.0)
+                    border_pixel_u8c3(img, x, y, border, fill, orow[c])
                 else:  # the fill value (fix overwrites it where the border rules apply)
                     orow[c, 0] = f0
                     orow[c, 1] = f1
@@ -335,7 +343,6 @@ def _make_bilinear_u8c3(KIND: int):
     def fix(img, mp, border, fill, todo_all, row_ok, out):  # pragma: no cover
         """The pixels ``main`` marked in ``todo_all`` (taps partly outside the image, or any
         outside for the replicate and reflect borders), through the border rules."""
-        H, W = img.shape[0], img.shape[1]
         for r in prange(out.shape[0]):
             if row_ok[r]:
                 continue
@@ -353,15 +360,7 @@ def _make_bilinear_u8c3(KIND: int):
                     x, y = from_affine(mp, r, c)
                 else:
                     x, y = from_perspective(mp, r, c)
-                # NaN, far away, or (constant border) every tap outside: the fill value.
-                far = not (abs(x) < 1e9 and abs(y) < 1e9) or (
-                    border == 0 and (x <= -1.0 or y <= -1.0 or x >= W or y >= H))
-                for ch in range(3):
-                    if far:
-                        v = fill[ch]
-                    else:
-                        v = border_bilinear(img, np.float64(x), np.float64(y), border, fill, ch)
-                    orow[c, ch] = store(v, True, 0.0, 255.0)
+                border_pixel_u8c3(img, x, y, border, fill, orow[c])
 
     def kernel(img, mp, a, border, fill, is_int, lo, hi, zero, out):
         """The signature of the other kernels. ``todo`` (1 byte per output pixel) is written
