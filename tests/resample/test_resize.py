@@ -141,3 +141,39 @@ def test_float64_images_are_filtered_in_float64(h, w):
         Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
     for ch in range(2):
         assert np.abs(out[..., ch] - Ry @ img[..., ch] @ Rx.T).max() < 1e-9
+
+
+# Each case compiles its own kernel (taps, channels and period are compile-time constants),
+# so the grid is a cross, not a product: every method at 3/2 in RGB, bicubic at the other
+# geometries, and bicubic at 3/2 with 1 and 4 channels.
+_ENLARGE_CASES = ([(m, (40, 64, 60, 96), 3) for m in RESIZE_INTERPOLATIONS]
+                  + [("bicubic", g, 3) for g in [(40, 64, 80, 160), (40, 64, 40, 72), (33, 41, 97, 57),
+                                                 (40, 64, 40, 64)]]
+                  + [("bicubic", (40, 64, 60, 96), c) for c in (1, 4)])
+
+
+@pytest.mark.parametrize(("interpolation", "geometry", "C"), _ENLARGE_CASES)
+def test_enlarging_matches_the_separable_filter(interpolation, geometry, C):
+    # Widths 96/64 (3 outputs per 2 inputs), 160/64 (5/2), 72/64 (9/8: too many phases for the
+    # polyphase path), 57/41 and 64/64: the polyphase path and the weight tables for the
+    # others must both give the separable filter written as two matrix products, on float64
+    # (1e-9) and on uint8 (within rounding: 0.5 + float32 error).
+    H, W, h, w = geometry
+    rng = np.random.default_rng(4)
+    img = rng.random((H, W, C))
+    sy, wy = resize_weights(H, h, interpolation)
+    sx, wx = resize_weights(W, w, interpolation)
+    Ry = np.zeros((h, H))
+    Rx = np.zeros((w, W))
+    for j in range(h):
+        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
+    for j in range(w):
+        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
+    ref = np.einsum("yY,YXc,xX->yxc", Ry, img, Rx)
+    out = resize(img, width=w, height=h, interpolation=interpolation)
+    assert out.shape == (h, w, C)
+    assert np.abs(out - ref).max() < 1e-9
+    u8 = (img * 255).round().astype(np.uint8)
+    ref8 = np.clip(np.einsum("yY,YXc,xX->yxc", Ry, u8.astype(float), Rx), 0, 255)
+    out8 = resize(u8, width=w, height=h, interpolation=interpolation)
+    assert np.abs(out8 - ref8).max() <= 0.5 + 1e-3
