@@ -155,8 +155,10 @@ def _plan(H: int, W: int, h: int, w: int, interpolation: str, antialias: bool, a
         else:
             sy, wy = padded
             shared = (np.ascontiguousarray(pw[0]), q, int(pfirst[0]) - q * c0, c0, c0 + m)  # first: of output 0
-    else:  # (pw (P, K), pfirst (P,), Q, c0, M) for the enlarging kernel
-        shared = _periodic(sx, wx, W, w, _MAX_PHASES, _MAX_STEP)
+    else:  # (pw (P, K), pfirst (P,), Q, c0, M) for the enlarging kernel; M = 0 for the tables
+        # (also where the width stays: one table-driven kernel per tap count serves every
+        # geometry without a short period, so fewer variants get compiled)
+        shared = _periodic(sx, wx, W, w, _MAX_PHASES if w != W else 0, _MAX_STEP)
     for arr in (sy, wy, sx, wx, shared[0] if shared else sy):
         arr.flags.writeable = False
     return sy, wy, sx, wx, shared
