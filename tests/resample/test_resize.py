@@ -178,3 +178,26 @@ def test_enlarging_matches_the_separable_filter(interpolation, geometry, C):
         ref8 = np.clip(np.einsum("yY,YXc,xX->yxc", Ry, u8.astype(float), Rx), 0, 255)
         out8 = resize(u8, width=w, height=h, interpolation=interpolation)
         assert np.abs(out8 - ref8).max() <= 0.5 + 1e-3
+
+
+def test_halving_matches_the_separable_filter():
+    # The halving kernel makes two output rows per iteration where their input windows are
+    # STEP rows apart (and one at a time near the borders and for an odd last row): 33 output
+    # rows from 66 exercise all three; float64 against the two matrix products, uint8 within
+    # rounding.
+    rng = np.random.default_rng(5)
+    img = rng.random((66, 64, 3))
+    h, w = 33, 32
+    sy, wy = resize_weights(66, h, "bicubic")
+    sx, wx = resize_weights(64, w, "bicubic")
+    Ry = np.zeros((h, 66))
+    Rx = np.zeros((w, 64))
+    for j in range(h):
+        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
+    for j in range(w):
+        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
+    ref = np.einsum("yY,YXc,xX->yxc", Ry, img, Rx)
+    assert np.abs(resize(img, width=w, height=h) - ref).max() < 1e-9
+    u8 = (img * 255).round().astype(np.uint8)
+    ref8 = np.clip(np.einsum("yY,YXc,xX->yxc", Ry, u8.astype(float), Rx), 0, 255)
+    assert np.abs(resize(u8, width=w, height=h) - ref8).max() <= 0.5 + 1e-3
