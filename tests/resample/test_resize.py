@@ -121,26 +121,30 @@ def test_bad_input():
         resize(img, width=5, height=5, interpolation="cubic")
 
 
+def _separable(img, h, w, interpolation="bicubic"):
+    """The resize written as two float64 matrix products from the weight tables (the
+    reference the kernels must equal): rows of Ry and Rx hold each output's taps."""
+    H, W = img.shape[:2]
+    sy, wy = resize_weights(H, h, interpolation)
+    sx, wx = resize_weights(W, w, interpolation)
+    Ry = np.zeros((h, H))
+    Rx = np.zeros((w, W))
+    for j in range(h):
+        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
+    for j in range(w):
+        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
+    return np.einsum("yY,YXc,xX->yxc", Ry, img.astype(np.float64), Rx)
+
+
 @pytest.mark.parametrize(("h", "w"), [(32, 32), (100, 90), (40, 150)])
 def test_float64_images_are_filtered_in_float64(h, w):
     # The passes accumulate in float64 for float64 images: the result equals the separable
     # filter as two float64 matrix products (it once accumulated the vertical pass in
     # float32: errors of 5e-5 on values near 1000).
-    from camkit.resample.resize import resize_weights
-
     rng = np.random.default_rng(3)
     img = rng.random((64, 64, 2)) + 1000.0
     out = resize(img, width=w, height=h, interpolation="bicubic")
-    sy, wy = resize_weights(64, h, "bicubic")
-    sx, wx = resize_weights(64, w, "bicubic")
-    Ry = np.zeros((h, 64))
-    Rx = np.zeros((w, 64))
-    for j in range(h):
-        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
-    for j in range(w):
-        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
-    for ch in range(2):
-        assert np.abs(out[..., ch] - Ry @ img[..., ch] @ Rx.T).max() < 1e-9
+    assert np.abs(out - _separable(img, h, w)).max() < 1e-9
 
 
 # Each case compiles its own kernel (taps, channels and period are compile-time constants),
@@ -152,52 +156,31 @@ _ENLARGE_CASES = ([(m, (40, 64, 60, 96), 3) for m in RESIZE_INTERPOLATIONS]
                   + [("bicubic", (40, 64, 60, 96), c) for c in (1, 4)])
 
 
+def _check_float64_and_uint8(img, h, w, interpolation="bicubic", uint8=True):
+    """resize equals the separable reference: float64 to 1e-9, uint8 within rounding
+    (0.5 + float32 error)."""
+    out = resize(img, width=w, height=h, interpolation=interpolation)
+    assert out.shape == (h, w, img.shape[2])
+    assert np.abs(out - _separable(img, h, w, interpolation)).max() < 1e-9
+    if uint8:
+        u8 = (img * 255).round().astype(np.uint8)
+        ref8 = np.clip(_separable(u8, h, w, interpolation), 0, 255)
+        assert np.abs(resize(u8, width=w, height=h, interpolation=interpolation) - ref8).max() <= 0.5 + 1e-3
+
+
 @pytest.mark.parametrize(("interpolation", "geometry", "C"), _ENLARGE_CASES)
 def test_enlarging_matches_the_separable_filter(interpolation, geometry, C):
     # Widths 96/64 (3 outputs per 2 inputs), 160/64 (5/2), 72/64 (9/8: too many phases for the
     # polyphase path), 57/41 and 64/64: the polyphase path and the weight tables for the
-    # others must both give the separable filter written as two matrix products, on float64
-    # (1e-9) and, for the benchmarked case, on uint8 (within rounding: 0.5 + float32 error).
+    # others must both give the separable filter; uint8 checked on the benchmarked case
+    # (RGB bicubic 3/2) only.
     H, W, h, w = geometry
-    rng = np.random.default_rng(4)
-    img = rng.random((H, W, C))
-    sy, wy = resize_weights(H, h, interpolation)
-    sx, wx = resize_weights(W, w, interpolation)
-    Ry = np.zeros((h, H))
-    Rx = np.zeros((w, W))
-    for j in range(h):
-        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
-    for j in range(w):
-        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
-    ref = np.einsum("yY,YXc,xX->yxc", Ry, img, Rx)
-    out = resize(img, width=w, height=h, interpolation=interpolation)
-    assert out.shape == (h, w, C)
-    assert np.abs(out - ref).max() < 1e-9
-    if (interpolation, geometry, C) == _ENLARGE_CASES[2]:  # uint8 RGB bicubic 3/2, as benchmarked
-        u8 = (img * 255).round().astype(np.uint8)
-        ref8 = np.clip(np.einsum("yY,YXc,xX->yxc", Ry, u8.astype(float), Rx), 0, 255)
-        out8 = resize(u8, width=w, height=h, interpolation=interpolation)
-        assert np.abs(out8 - ref8).max() <= 0.5 + 1e-3
+    img = np.random.default_rng(4).random((H, W, C))
+    _check_float64_and_uint8(img, h, w, interpolation, uint8=(interpolation, geometry, C) == _ENLARGE_CASES[2])
 
 
 def test_halving_matches_the_separable_filter():
     # The halving kernel makes two output rows per iteration where their input windows are
     # STEP rows apart (and one at a time near the borders and for an odd last row): 33 output
-    # rows from 66 exercise all three; float64 against the two matrix products, uint8 within
-    # rounding.
-    rng = np.random.default_rng(5)
-    img = rng.random((66, 64, 3))
-    h, w = 33, 32
-    sy, wy = resize_weights(66, h, "bicubic")
-    sx, wx = resize_weights(64, w, "bicubic")
-    Ry = np.zeros((h, 66))
-    Rx = np.zeros((w, 64))
-    for j in range(h):
-        Ry[j, sy[j]:sy[j] + wy.shape[1]] = wy[j]
-    for j in range(w):
-        Rx[j, sx[j]:sx[j] + wx.shape[1]] = wx[j]
-    ref = np.einsum("yY,YXc,xX->yxc", Ry, img, Rx)
-    assert np.abs(resize(img, width=w, height=h) - ref).max() < 1e-9
-    u8 = (img * 255).round().astype(np.uint8)
-    ref8 = np.clip(np.einsum("yY,YXc,xX->yxc", Ry, u8.astype(float), Rx), 0, 255)
-    assert np.abs(resize(u8, width=w, height=h) - ref8).max() <= 0.5 + 1e-3
+    # rows from 66 exercise all three.
+    _check_float64_and_uint8(np.random.default_rng(5).random((66, 64, 3)), 33, 32)
