@@ -129,14 +129,14 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                         for k in range(KY):
                             a += wt[k] * src[st + k, i]
                         acct[i] = a
+            stp = STEP if STEP > 0 else step
+            n = (stp * (c1 - 1 - c0) + 1) * C if KX > 0 and c0 < c1 else 0
+            full = np.empty(n, type(zero))  # the full-rate row, shared by the rows made here
             for t in range(nrows):
                 acct = acc[t]
                 orow = out[j + t].reshape(-1)
                 if KX > 0 and c0 < c1:
-                    stp = STEP if STEP > 0 else step
-                    n = (stp * (c1 - 1 - c0) + 1) * C
                     seg = acct[(stp * c0 + first) * C:]
-                    full = np.empty(n, type(zero))
                     for i in range(n):
                         a = zero
                         for k in range(KX):
