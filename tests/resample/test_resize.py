@@ -184,3 +184,11 @@ def test_halving_matches_the_separable_filter():
     # STEP rows apart (and one at a time near the borders and for an odd last row): 33 output
     # rows from 66 exercise all three.
     _check_float64_and_uint8(np.random.default_rng(5).random((66, 64, 3)), 33, 32)
+
+
+@pytest.mark.parametrize(("H", "W", "h", "w"), [(66, 64, 33, 64), (30, 64, 45, 32)])
+def test_mixed_directions_match_the_separable_filter(H, W, h, w):
+    # Shrinking rows with the width kept (the shrinking kernel with a step of 1, two rows per
+    # iteration) and enlarging rows while halving the width (the enlarging kernel with one
+    # phase every 2 inputs).
+    _check_float64_and_uint8(np.random.default_rng(6).random((H, W, 3)), h, w, uint8=False)
