@@ -52,3 +52,10 @@ def store(v: float, is_int: bool, lo: float, hi: float) -> float:  # pragma: no 
         if v > hi:
             return hi
     return v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sat(v, hi):  # pragma: no cover
+    """Clamp v (already offset by +0.5) to [0, hi]; the store into an unsigned array then
+    truncates, which is floor(v) for v >= 0: round-half-up and saturation in one step."""
+    return min(max(v, v * 0), hi)  # min/max, not branches: they vectorise

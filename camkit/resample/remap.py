@@ -47,10 +47,13 @@ def new_image(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
 
 def pick_kernel(family: str, method: int, img3: np.ndarray):
     """The kernel for a source of coordinates ('map', 'affine', 'perspective') and a method;
-    uint8 RGB bilinear has its own fixed-point kernel, whose int32 offsets hold images below
-    2 GiB (larger ones take the general kernel)."""
+    uint8 RGB has its own kernels: bilinear in two phases per row, whose int32 offsets hold
+    images below 2 GiB (larger ones take the general kernel), bicubic and Lanczos-3 compiled
+    for 3 channels."""
     if method == 1 and img3.dtype == np.uint8 and img3.shape[2] == 3 and img3.size < 2**31:
         return _kr.BILINEAR_U8C3[family]
+    if method >= 2 and img3.dtype == np.uint8 and img3.shape[2] == 3:
+        return _kr.RGB[family][method]
     return {"map": _kr.REMAP, "affine": _kr.WARP_AFFINE, "perspective": _kr.WARP_PERSPECTIVE}[family][method]
 
 

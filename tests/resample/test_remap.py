@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import ctypes
+import mmap
+import sys
+
 import cv2
 import numpy as np
 import pytest
 
 from camkit.errors import CamkitError, ParameterError, ShapeError
-from camkit.resample import INTERPOLATIONS, kernel, remap
+from camkit.resample import INTERPOLATIONS, kernel, remap, warp_affine, warp_perspective
 
 from .reference import remap_reference, to_dtype
 
@@ -147,3 +151,42 @@ def test_bad_input(call, exc, needle):
         call()
     assert isinstance(info.value, CamkitError)
     assert needle in str(info.value)
+
+
+def _image_before_an_unreadable_page(shape):
+    """A uint8 array whose last byte is the last one before a page that may not be read (Linux):
+    a kernel that reads past the image's end crashes instead of reading garbage quietly."""
+    page = mmap.PAGESIZE
+    nbytes = int(np.prod(shape))
+    npages = -(-nbytes // page) + 1
+    buf = mmap.mmap(-1, npages * page, prot=mmap.PROT_READ | mmap.PROT_WRITE)
+    start = (npages - 1) * page - nbytes
+    arr = np.frombuffer(buf, np.uint8, count=nbytes, offset=start).reshape(shape)
+    addr = arr.ctypes.data + nbytes
+    libc = ctypes.CDLL(None, use_errno=True)
+    libc.mprotect.argtypes = [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_int]
+    assert libc.mprotect(ctypes.c_void_p(addr), page, 0) == 0  # PROT_NONE
+    return arr, buf
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="needs mprotect (Linux)")
+@pytest.mark.parametrize("method", ["bilinear", "bicubic", "lanczos3"])
+@pytest.mark.parametrize("family", ["map", "affine", "perspective"])
+def test_uint8_rgb_vector_loads_stay_inside_the_image(method, family):
+    # The uint8 RGB kernels load whole vectors per row of taps; near the image's end they must
+    # fall back to scalar loads. Every position of the last rows and columns, against the
+    # float64 reference; an image that ends where unreadable memory begins.
+    src = RNG.integers(0, 256, (12, 14, 3), dtype=np.uint8)
+    img, buf = _image_before_an_unreadable_page(src.shape)
+    np.frombuffer(buf, np.uint8)[-mmap.PAGESIZE - img.size:-mmap.PAGESIZE] = src.reshape(-1)
+    yy, xx = np.mgrid[6.0:11.0:0.25, 0.0:13.0:0.25]
+    mp = np.stack([xx + 0.1, yy + 0.05], -1)
+    ref = to_dtype(remap_reference(src, mp, method, "replicate", 0), np.uint8)
+    if family == "map":
+        out = remap(img, mp.astype(np.float32), interpolation=method, border="replicate")
+    else:  # the same grid as a warp (which takes destination <- source)
+        A = np.linalg.inv(np.array([[0.25, 0.0, 0.1], [0.0, 0.25, 6.05], [0.0, 0.0, 1.0]]))
+        warp = warp_affine if family == "affine" else warp_perspective
+        out = warp(img, A[:2] if family == "affine" else A, width=mp.shape[1], height=mp.shape[0],
+                   interpolation=method, border="replicate")
+    assert np.abs(out.astype(int) - ref).max() <= 1

@@ -1,0 +1,188 @@
+"""Explicit SIMD for the pixel gathers of remap and the warps, on uint8 RGB(A) images.
+
+Why LLVM IR here: numba's auto-vectoriser cannot vectorise a gather of a few neighbouring
+pixels at a scattered address, so for each tap it emits one scalar byte load and one
+int-to-float conversion per channel (48 of each per bicubic RGB pixel, seen in the
+assembly). ``blend_u8c3`` and ``blend_u8c4`` write the vector code themselves, per output pixel:
+
+- each of the N rows of taps is one unaligned load of ``span(N, C)`` bytes (the N pixels'
+  3N or 4N bytes, rounded up to a power of two: the caller keeps the read inside the
+  image), one byte shuffle into N groups of 4 lanes (R, G, B, 0), one widening to int32 and
+  one conversion to float32;
+- the rows are summed with their vertical weights, the sum is multiplied by the horizontal
+  weights (each repeated over its 4 lanes) and the N groups are added into 4 lanes;
+- +0.5, clamp to [0, 255] and truncation: round half up and saturate, as the scalar kernels
+  store uint8; C bytes are stored.
+
+Measured (4000x3000 RGB through a full-resolution undistortion map, both cores, one process,
+alternated calls): bicubic 320 -> 130 ms, cv2.remap INTER_CUBIC 156 ms; bilinear 93-99 ->
+69-71 ms, cv2.remap INTER_LINEAR 68-73 ms.
+
+``blend_rgb`` is the entry point for kernels compiled for every dtype: the SIMD code for
+uint8, the scalar sum for the others (identical results up to float32 rounding).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.extending import intrinsic, overload
+
+from camkit._kernels.interp import sat
+
+_I8, _I32, _I64, _F32 = ir.IntType(8), ir.IntType(32), ir.IntType(64), ir.FloatType()
+_V = ir.VectorType
+
+
+def span(n_taps: int, channels: int) -> int:
+    """Bytes read per row of taps: n_taps pixels of ``channels`` bytes, rounded up to a power
+    of two (so up to 4 * n_taps + ... bytes beyond the last tap's first byte)."""
+    p = 1
+    while p < n_taps * channels:
+        p *= 2
+    return p
+
+
+def _mask(idx) -> ir.Constant:
+    idx = list(idx)
+    return ir.Constant(_V(_I32, len(idx)), [ir.Constant(_I32, k) for k in idx])
+
+
+def _splat(builder: ir.IRBuilder, x: ir.Value, n: int) -> ir.Value:
+    v = builder.insert_element(ir.Constant(_V(_F32, n), ir.Undefined), x, ir.Constant(_I32, 0))
+    return builder.shuffle_vector(v, v, _mask([0] * n))
+
+
+def _to_f32(builder: ir.IRBuilder, x: ir.Value) -> ir.Value:
+    return x if x.type == _F32 else builder.fptrunc(x, _F32)
+
+
+def _blend_codegen(N: int, C: int):
+    """The LLVM IR of one output pixel from N x N taps of a C-channel uint8 image."""
+    B = span(N, C)
+    L = 4 * N  # N pixels, 4 lanes each
+    flags = ("contract",)
+
+    def codegen(context, builder, signature, args):
+        src = context.make_array(signature.args[0])(context, builder, args[0]).data
+        dst = context.make_array(signature.args[5])(context, builder, args[5]).data
+        sa = signature.args
+        off, stride, doff = (context.cast(builder, args[i], sa[i], types.int64) for i in (1, 2, 6))
+        wxt, wyt = args[3], args[4]
+        wx = [_to_f32(builder, builder.extract_value(wxt, k)) for k in range(N)]
+        wy = [_to_f32(builder, builder.extract_value(wyt, k)) for k in range(N)]
+        # byte k*C + ch of the row -> lane 4k + ch; lane 4k + 3 = 0 for RGB (index B: the zeros)
+        shuffle = _mask([k * C + ch if ch < C else B for k in range(N) for ch in range(4)])
+        zeros = ir.Constant(_V(_I8, B), None)
+        acc = None
+        for j in range(N):
+            p = builder.gep(src, [builder.add(off, builder.mul(stride, ir.Constant(_I64, j)))])
+            row = builder.load(builder.bitcast(p, _V(_I8, B).as_pointer()), align=1)
+            lanes = builder.shuffle_vector(row, zeros, shuffle)
+            f = builder.sitofp(builder.zext(lanes, _V(_I32, L)), _V(_F32, L))
+            t = builder.fmul(f, _splat(builder, wy[j], L), flags=flags)
+            acc = t if acc is None else builder.fadd(acc, t, flags=flags)
+        wv = ir.Constant(_V(_F32, L), ir.Undefined)
+        for k in range(N):
+            for ch in range(4):
+                wv = builder.insert_element(wv, wx[k], ir.Constant(_I32, 4 * k + ch))
+        acc = builder.fmul(acc, wv, flags=flags)
+        parts = [builder.shuffle_vector(acc, acc, _mask(range(4 * k, 4 * k + 4))) for k in range(N)]
+        while len(parts) > 1:  # pairwise sums of the N groups
+            nxt = [builder.fadd(parts[i], parts[i + 1], flags=flags) for i in range(0, len(parts) - 1, 2)]
+            parts = nxt + parts[len(parts) - len(parts) % 2:]
+        v = builder.fadd(parts[0], ir.Constant(_V(_F32, 4), [0.5] * 4))
+        lo = ir.Constant(_V(_F32, 4), [0.0] * 4)
+        hi = ir.Constant(_V(_F32, 4), [255.0] * 4)
+        v = builder.select(builder.fcmp_ordered("<", v, lo), lo, v)
+        v = builder.select(builder.fcmp_ordered(">", v, hi), hi, v)
+        px = builder.trunc(builder.fptosi(v, _V(_I32, 4)), _V(_I8, 4))
+        q = builder.gep(dst, [doff])
+        if C == 4:
+            builder.store(px, builder.bitcast(q, _V(_I8, 4).as_pointer()), align=1)
+        else:
+            for ch in range(C):
+                byte = builder.extract_element(px, ir.Constant(_I32, ch))
+                builder.store(byte, builder.gep(q, [ir.Constant(_I64, ch)]))
+        return context.get_dummy_value()
+
+    return codegen
+
+
+def _is_u8_vector(a) -> bool:
+    return isinstance(a, types.Array) and a.dtype == types.uint8 and a.ndim == 1 and a.layout == "C"
+
+
+def _is_weights(t) -> bool:
+    return isinstance(t, types.UniTuple) and t.count in (2, 4, 6) and isinstance(t.dtype, types.Float)
+
+
+def _make_intrinsic(C: int):
+    """blend(src, off, stride, wx, wy, dst, doff): dst[doff + ch] = the rounded, saturated sum
+    over j, k of wy[j] wx[k] src[off + j * stride + k * C + ch] for ch < C, on flat uint8 arrays;
+    wx, wy: tuples of N floats (N = 2, 4 or 6; float64 ones are rounded to float32). Reads
+    span(N, C) bytes from each row's first tap: the caller keeps that inside ``src``."""
+
+    @intrinsic
+    def blend(typingctx, src, off, stride, wx, wy, dst, doff):
+        if not (_is_u8_vector(src) and _is_u8_vector(dst) and _is_weights(wx) and _is_weights(wy)
+                and wx.count == wy.count and all(isinstance(t, types.Integer) for t in (off, stride, doff))):
+            return None
+        sig = types.void(src, off, stride, wx, wy, dst, doff)
+        return sig, _blend_codegen(wx.count, C)
+
+    return blend
+
+
+#: uint8 RGB and RGBA
+blend_u8c3 = _make_intrinsic(3)
+blend_u8c4 = _make_intrinsic(4)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
+def blend_scalar_c3(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
+    """The same sum for 3 channels in scalar code, in the type of ``zero``, for every dtype."""
+    T = type(zero)
+    a0 = zero
+    a1 = zero
+    a2 = zero
+    u1 = np.uint64(1)
+    u2 = np.uint64(2)
+    for j in range(len(wy)):
+        rb = np.uint64(base + j * stride)  # unsigned offsets: no wrap-around test per load
+        for k in range(len(wx)):
+            w = T(wy[j] * wx[k])
+            pb = rb + np.uint64(3 * k)
+            a0 += w * flat[pb]
+            a1 += w * flat[pb + u1]
+            a2 += w * flat[pb + u2]
+    if is_int:
+        half = T(0.5)
+        oflat[doff] = sat(a0 + half, hi_t)
+        oflat[doff + 1] = sat(a1 + half, hi_t)
+        oflat[doff + 2] = sat(a2 + half, hi_t)
+    else:
+        oflat[doff] = a0
+        oflat[doff + 1] = a1
+        oflat[doff + 2] = a2
+
+
+def blend_rgb(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover
+    """oflat[doff:doff + 3] = the N x N taps of a 3-channel image from flat offset ``base``
+    blended with the weights wy (rows) and wx (columns), rounded and saturated for integer
+    images: the SIMD code for uint8, which reads span(N, 3) bytes from each row's first tap
+    (the caller checks the room), the scalar code for the other dtypes. numba only."""
+    raise NotImplementedError("blend_rgb is compiled by numba only")
+
+
+@overload(blend_rgb, jit_options={"cache": True})
+def _blend_rgb(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):
+    if _is_u8_vector(flat) and _is_u8_vector(oflat) and _is_weights(wx):
+        def simd(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
+            blend_u8c3(flat, base, stride, wx, wy, oflat, doff)
+        return simd
+
+    def scalar(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
+        blend_scalar_c3(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff)
+    return scalar
