@@ -233,7 +233,7 @@ def _make_bilinear_u8c3(KIND: int):
     """uint8 RGB, bilinear: the common case, in two phases per row. Phase 1 turns
     coordinates into flat offsets and the fractional positions (vectorisable); phase 2
     gathers and blends each pixel with ``blend_u8c3`` (explicit SIMD, float32; it replaced
-    11-bit fixed-point scalar code: 12 MP remap 93-99 -> ~70 ms). For a map, the pixels whose
+    11-bit fixed-point scalar code: 12 MP remap 93-99 -> 75-81 ms). For a map, the pixels whose
     taps leave the image (or whose vector loads would) take the border rules in phase 2
     itself; for the warps, phase 2 writes the fill value and the pixels that need the border
     rules are redone by a second kernel, ``fix`` (that slow path anywhere in the warps' first
@@ -272,7 +272,7 @@ def _make_bilinear_u8c3(KIND: int):
             # The row's constant terms in float64, the per-pixel arithmetic of the warps in
             # float32 (8 lanes, not 4, and float32 -> int32 conversions, which AVX2 has packed;
             # measured 97 -> 76 ms per perspective warp of 12 MP). Positions are then within
-            # ~5e-4 px of the float64 ones at 4000 px: a weight step is 1/2048.
+            # ~5e-4 px of the float64 ones at 4000 px.
             bx = F32(m01 * r + m02)
             by = F32(m11 * r + m12)
             bw = F32(m21 * r + m22)

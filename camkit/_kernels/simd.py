@@ -1,22 +1,22 @@
-"""Explicit SIMD for the pixel gathers of remap and the warps, on uint8 RGB(A) images.
+"""Explicit SIMD for the pixel gathers of remap and the warps, on uint8 RGB images.
 
 Why LLVM IR here: numba's auto-vectoriser cannot vectorise a gather of a few neighbouring
 pixels at a scattered address, so for each tap it emits one scalar byte load and one
 int-to-float conversion per channel (48 of each per bicubic RGB pixel, seen in the
-assembly). ``blend_u8c3`` and ``blend_u8c4`` write the vector code themselves, per output pixel:
+assembly). ``blend_u8c3`` writes the vector code itself, per output pixel:
 
 - each of the N rows of taps is one unaligned load of ``span(N, C)`` bytes (the N pixels'
-  3N or 4N bytes, rounded up to a power of two: the caller keeps the read inside the
+  3N bytes, rounded up to a power of two: the caller keeps the read inside the
   image), one byte shuffle into N groups of 4 lanes (R, G, B, 0), one widening to int32 and
   one conversion to float32;
 - the rows are summed with their vertical weights, the sum is multiplied by the horizontal
   weights (each repeated over its 4 lanes) and the N groups are added into 4 lanes;
 - +0.5, clamp to [0, 255] and truncation: round half up and saturate, as the scalar kernels
-  store uint8; C bytes are stored.
+  store uint8; 3 bytes are stored.
 
-Measured (4000x3000 RGB through a full-resolution undistortion map, both cores, one process,
-alternated calls): bicubic 320 -> 130 ms, cv2.remap INTER_CUBIC 156 ms; bilinear 93-99 ->
-69-71 ms, cv2.remap INTER_LINEAR 68-73 ms.
+Measured (4000x3000 RGB through a full-resolution undistortion map, both cores, the calls
+of ``python -m benchmarks -k remap``): bicubic 313-334 -> ~150 ms (cv2.remap INTER_CUBIC
+156-179 ms); bilinear 90-99 -> 75-81 ms (cv2.remap INTER_LINEAR 68-78 ms).
 
 ``blend_rgb`` is the entry point for kernels compiled for every dtype: the SIMD code for
 uint8, the scalar sum for the others (identical results up to float32 rounding).
@@ -99,12 +99,9 @@ def _blend_codegen(N: int, C: int):
         v = builder.select(builder.fcmp_ordered(">", v, hi), hi, v)
         px = builder.trunc(builder.fptosi(v, _V(_I32, 4)), _V(_I8, 4))
         q = builder.gep(dst, [doff])
-        if C == 4:
-            builder.store(px, builder.bitcast(q, _V(_I8, 4).as_pointer()), align=1)
-        else:
-            for ch in range(C):
-                byte = builder.extract_element(px, ir.Constant(_I32, ch))
-                builder.store(byte, builder.gep(q, [ir.Constant(_I64, ch)]))
+        for ch in range(C):
+            byte = builder.extract_element(px, ir.Constant(_I32, ch))
+            builder.store(byte, builder.gep(q, [ir.Constant(_I64, ch)]))
         return context.get_dummy_value()
 
     return codegen
@@ -135,9 +132,8 @@ def _make_intrinsic(C: int):
     return blend
 
 
-#: uint8 RGB and RGBA
+#: uint8 RGB
 blend_u8c3 = _make_intrinsic(3)
-blend_u8c4 = _make_intrinsic(4)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})

@@ -46,7 +46,7 @@ def test_agrees_with_reference(method, border, dtype, channels):
     ref = to_dtype(remap_reference(img, mp, method, border, fill), dtype)
     diff = np.abs(out.astype(np.float64) - ref)
     if np.dtype(dtype).kind == "u":
-        # Float32 accumulation (and 11-bit fixed-point weights for uint8 RGB bilinear) can move
+        # Float32 accumulation (float32 weights in the uint8 RGB vector code) can move
         # a value across a rounding boundary: at most 1 level.
         assert diff.max() <= 1
     else:
@@ -69,7 +69,7 @@ def test_float32_map_and_uint8_rgb_fast_path_match_opencv():
     ours = remap(img, mp)
     ref = cv2.remap(img, np.ascontiguousarray(mp[..., 0]), np.ascontiguousarray(mp[..., 1]),
                     cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT)
-    assert np.abs(ours.astype(int) - ref).max() <= 1  # both use fixed-point weights
+    assert np.abs(ours.astype(int) - ref).max() <= 1  # OpenCV's weights are fixed-point (1/32 px)
 
 
 def test_borders_explicitly():
