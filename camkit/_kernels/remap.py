@@ -11,7 +11,8 @@ float32 images, float64 for float64 images).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from camkit._kernels.interp import border_index, lanczos3, sat, store
 from camkit._kernels.simd import blend_rgb, blend_scalar_c3, blend_u8c3, span
@@ -80,6 +81,33 @@ def from_perspective(P, r, c):  # pragma: no cover
     return (P[0, 0] * c + P[0, 1] * r + P[0, 2]) * iw, (P[1, 0] * c + P[1, 1] * r + P[1, 2]) * iw
 
 
+def taps(x, a, n):  # pragma: no cover - numba only
+    """taps1, taps2, taps4 or taps6 by ``n``, a compile-time constant (chosen while typing)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(taps, prefer_literal=True, jit_options={"cache": True})
+def _taps(x, a, n):
+    if isinstance(n, types.IntegerLiteral):
+        impl = {1: taps1, 2: taps2, 4: taps4, 6: taps6}[n.literal_value]
+        return lambda x, a, n: impl(x, a)
+    return None
+
+
+def coords(mp, r, c, kind):  # pragma: no cover - numba only
+    """The source position of output pixel (r, c): from_map, from_affine or from_perspective by
+    ``kind`` (0, 1, 2), a compile-time constant (chosen while typing)."""
+    raise NotImplementedError("numba only")
+
+
+@overload(coords, prefer_literal=True, jit_options={"cache": True})
+def _coords(mp, r, c, kind):
+    if isinstance(kind, types.IntegerLiteral):
+        impl = (from_map, from_affine, from_perspective)[kind.literal_value]
+        return lambda mp, r, c, kind: impl(mp, r, c)
+    return None
+
+
 def _make(N: int, KIND: int, RGB: int = 0):
     """The kernel for N taps (1, 2, 4, 6) and a source of coordinates (KIND: 0 map, 1 affine,
     2 perspective); RGB = 1: for 3-channel images only. The closure captures plain ints only:
@@ -111,29 +139,14 @@ def _make(N: int, KIND: int, RGB: int = 0):
             todo = np.empty(Wo, np.int64)  # the pixels for the border rules, after the row
             n_todo = 0
             for c in range(Wo):
-                if KIND == 0:
-                    x, y = from_map(mp, r, c)
-                elif KIND == 1:
-                    x, y = from_affine(mp, r, c)
-                else:
-                    x, y = from_perspective(mp, r, c)
+                x, y = coords(mp, r, c, KIND)
                 # near the image (False for NaN), so the tap indices below are plain integers
                 if not ((x > -N) & (x < W + N) & (y > -N) & (y < H + N)):
                     todo[n_todo] = c
                     n_todo += 1
                     continue
-                if N == 1:
-                    x0, wx = taps1(x, a)
-                    y0, wy = taps1(y, a)
-                elif N == 2:
-                    x0, wx = taps2(x, a)
-                    y0, wy = taps2(y, a)
-                elif N == 4:
-                    x0, wx = taps4(x, a)
-                    y0, wy = taps4(y, a)
-                else:
-                    x0, wx = taps6(x, a)
-                    y0, wy = taps6(y, a)
+                x0, wx = taps(x, a, N)
+                y0, wy = taps(y, a, N)
                 base = y0 * W3 + x0 * 3
                 if C == 3 and x0 >= 0 and y0 >= 0 and x0 + N <= W and y0 + N <= H:
                     if base + (N - 1) * W3 + SPAN <= n_flat:  # room for the vector loads of blend_rgb
@@ -155,28 +168,13 @@ def _make(N: int, KIND: int, RGB: int = 0):
                     n_todo += 1
             for i in range(n_todo):  # taps outside the image, NaN or far away
                 c = todo[i]
-                if KIND == 0:
-                    x, y = from_map(mp, r, c)
-                elif KIND == 1:
-                    x, y = from_affine(mp, r, c)
-                else:
-                    x, y = from_perspective(mp, r, c)
+                x, y = coords(mp, r, c, KIND)
                 if not (abs(x) < 1e9 and abs(y) < 1e9):  # NaN, inf or absurdly far: fill
                     for ch in range(C):
                         out[r, c, ch] = store(fill[ch], is_int, lo, hi)
                     continue
-                if N == 1:
-                    x0, wx = taps1(x, a)
-                    y0, wy = taps1(y, a)
-                elif N == 2:
-                    x0, wx = taps2(x, a)
-                    y0, wy = taps2(y, a)
-                elif N == 4:
-                    x0, wx = taps4(x, a)
-                    y0, wy = taps4(y, a)
-                else:
-                    x0, wx = taps6(x, a)
-                    y0, wy = taps6(y, a)
+                x0, wx = taps(x, a, N)
+                y0, wy = taps(y, a, N)
                 for ch in range(C):
                     acc = 0.0
                     for j in range(N):
@@ -371,12 +369,7 @@ def _make_bilinear_u8c3(KIND: int, TR: int = 32, TC: int = 128):
                 cols[n] = c
                 n += mark[c]
             for c in cols[:n]:
-                if KIND == 0:
-                    x, y = from_map(mp, r, c)
-                elif KIND == 1:
-                    x, y = from_affine(mp, r, c)
-                else:
-                    x, y = from_perspective(mp, r, c)
+                x, y = coords(mp, r, c, KIND)
                 border_pixel_u8c3(img, x, y, border, fill, orow[c])
 
     def kernel(img, mp, a, border, fill, is_int, lo, hi, zero, out):
