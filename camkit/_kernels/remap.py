@@ -169,12 +169,16 @@ def _make(N: int, KIND: int, RGB: int = 0):
             for i in range(n_todo):  # taps outside the image, NaN or far away
                 c = todo[i]
                 x, y = coords(mp, r, c, KIND)
-                if not (abs(x) < 1e9 and abs(y) < 1e9):  # NaN, inf or absurdly far: fill
+                far = not (abs(x) < 1e9 and abs(y) < 1e9)  # NaN, inf or absurdly far: fill
+                if not far:
+                    x0, wx = taps(x, a, N)
+                    y0, wy = taps(y, a, N)
+                    # every tap outside a constant border: fill
+                    far = border == 0 and (x0 + N <= 0 or y0 + N <= 0 or x0 >= W or y0 >= H)
+                if far:
                     for ch in range(C):
                         out[r, c, ch] = store(fill[ch], is_int, lo, hi)
                     continue
-                x0, wx = taps(x, a, N)
-                y0, wy = taps(y, a, N)
                 for ch in range(C):
                     acc = 0.0
                     for j in range(N):

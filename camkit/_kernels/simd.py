@@ -36,8 +36,8 @@ _V = ir.VectorType
 
 
 def span(n_taps: int, channels: int) -> int:
-    """Bytes read per row of taps: n_taps pixels of ``channels`` bytes, rounded up to a power
-    of two (so up to 4 * n_taps + ... bytes beyond the last tap's first byte)."""
+    """Bytes read per row of taps: the n_taps pixels' n_taps * channels bytes rounded up to a
+    power of two (RGB: 8 for bilinear, 16 for bicubic, 32 for Lanczos-3)."""
     p = 1
     while p < n_taps * channels:
         p *= 2
