@@ -14,10 +14,13 @@ import json, numpy as np
 from camkit._kernels import remap as kr
 from camkit.resample import remap, warp_perspective
 img = np.zeros((8, 8, 3), np.uint8)
-remap(img, np.zeros((4, 4, 2), np.float32))                   # uint8 RGB bilinear kernel
+remap(img, np.zeros((4, 4, 2), np.float32))                   # uint8 RGB bilinear kernel (SIMD)
+remap(img, np.zeros((4, 4, 2), np.float32), interpolation="bicubic")  # uint8 RGB, 3 channels (SIMD)
 remap(img.astype(np.float32), np.zeros((4, 4, 2)), interpolation="bicubic")
+warp_perspective(img[..., :2], np.eye(3), width=4, height=4, interpolation="lanczos3")
 warp_perspective(img, np.eye(3), width=4, height=4, interpolation="lanczos3")
-used = [kr.BILINEAR_U8C3["map"].main, kr.REMAP[2], kr.WARP_PERSPECTIVE[3]]
+used = [kr.BILINEAR_U8C3["map"].main, kr.RGB["map"][2], kr.REMAP[2], kr.WARP_PERSPECTIVE[3],
+        kr.RGB["perspective"][3]]
 print(json.dumps([[sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())] for d in used]))
 """
 
