@@ -1,7 +1,7 @@
 """Interpolation weights and border handling shared by remap, warps and resize.
 
 Methods (internal codes): 0 nearest, 1 bilinear, 2 bicubic (Keys, parameter a; its weights are
-closed-form polynomials in camkit._kernels.remap.taps4), 3 Lanczos-3.
+closed-form polynomials in camkit._kernels.remap.keys4), 3 Lanczos-3.
 Borders: 0 constant, 1 replicate, 2 reflect (half-sample symmetric: ...c b a | a b c...).
 Pixel centres are at integer coordinates.
 """

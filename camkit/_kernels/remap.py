@@ -15,7 +15,7 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from camkit._kernels.interp import border_index, lanczos3, sat, store
-from camkit._kernels.simd import blend_rgb, blend_scalar_c3, blend_u8c3, span
+from camkit._kernels.simd import blend_rgb, blend_rgb_at, blend_scalar_c3, blend_u8c3, span
 
 # Each tapsN(x, a) returns the first tap's index and the N weights (summing to 1) for a
 # coordinate x; np.floor keeps x's float type, so float32 maps are computed in float32.
@@ -34,14 +34,23 @@ def taps2(x, a):  # pragma: no cover
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def keys4(t, a):  # pragma: no cover
+    """Keys' kernel at t+1, t, 1-t, 2-t for t in [0, 1), in the type of t, expanded into
+    branch-free polynomials: a t (1-t)^2, (a+2) t^3 - (a+3) t^2 + 1, the same at 1-t,
+    a t^2 (1-t) (R. Keys, IEEE Trans. ASSP 29(6), 1981)."""
+    F = type(t)
+    a = F(a)
+    one = F(1.0)
+    u = one - t
+    b = a + F(2.0)
+    c = a + F(3.0)
+    return a * t * u * u, (b * t - c) * t * t + one, (b * u - c) * u * u + one, a * t * t * u
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def taps4(x, a):  # pragma: no cover
-    """Keys' kernel at t+1, t, 1-t, 2-t for t in [0, 1), expanded into branch-free
-    polynomials: a t (1-t)^2, (a+2) t^3 - (a+3) t^2 + 1, the same at 1-t, a t^2 (1-t)."""
     f = np.floor(x)
-    t = np.float64(x - f)
-    u = 1.0 - t
-    return int(f) - 1, (a * t * u * u, ((a + 2.0) * t - (a + 3.0)) * t * t + 1.0,
-                        ((a + 2.0) * u - (a + 3.0)) * u * u + 1.0, a * t * t * u)
+    return int(f) - 1, keys4(np.float64(x - f), a)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -118,8 +127,14 @@ def _make(N: int, KIND: int, RGB: int = 0):
     uint8; see camkit._kernels.simd) where its vector loads stay inside the image; the rest are
     listed and go through the border rules after the row, out of the hot loop. The channel
     count known at compile time (RGB = 1) leaves the general channel loop out of the kernel:
-    measured on the bicubic uint8 RGB remap of 12 MP, 156 -> 143 ms."""
+    measured on the bicubic uint8 RGB remap of 12 MP, 156 -> 143 ms.
+    Bicubic on 3 channels (RGB = 1, N = 4) runs each row in two phases: phase 1, branch-free
+    so that it vectorises, turns the row's positions into offsets and float32 weights (in the
+    positions' type: float32 for float32 maps); phase 2 blends the pixels with every tap
+    inside (``blend_rgb_at``) and lists the others for the border rules. Measured on the 12 MP
+    undistortion (one process, 15 alternated calls): 150 -> 132 ms, cv2.remap INTER_CUBIC 161."""
     SPAN = span(N, 3)  # bytes blend_rgb reads from each row's first tap
+    TWO = RGB == 1 and N == 4
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
     def remap_kernel(img, mp, a, border, fill, is_int, lo, hi, zero, out):  # pragma: no cover
@@ -135,10 +150,38 @@ def _make(N: int, KIND: int, RGB: int = 0):
         oflat = out.reshape(-1)
         n_flat = flat.shape[0]
         W3 = W * 3
+        last = n_flat - (N - 1) * W3 - SPAN  # the last first-tap offset with room for the vector loads
         for r in prange(Ho):
             todo = np.empty(Wo, np.int64)  # the pixels for the border rules, after the row
             n_todo = 0
-            for c in range(Wo):
+            if TWO:
+                off = np.empty(Wo, np.int64)
+                ok = np.empty(Wo, np.bool_)
+                wxs = np.empty((Wo, N), np.float32)
+                wys = np.empty((Wo, N), np.float32)
+                for c in range(Wo):
+                    x, y = coords(mp, r, c, KIND)
+                    F = type(x)
+                    fx = np.floor(x)
+                    fy = np.floor(y)
+                    # every tap inside (False for NaN); the others get harmless stand-ins
+                    inside = (fx >= F(1)) & (fy >= F(1)) & (fx < F(W - 2)) & (fy < F(H - 2))
+                    gx = fx if inside else F(1)
+                    gy = fy if inside else F(1)
+                    o = (np.int64(gy) - 1) * W3 + (np.int64(gx) - 1) * 3
+                    ok[c] = inside & (o <= last)
+                    off[c] = o
+                    w0, w1, w2, w3 = keys4(x - gx, a)
+                    wxs[c, 0], wxs[c, 1], wxs[c, 2], wxs[c, 3] = w0, w1, w2, w3
+                    w0, w1, w2, w3 = keys4(y - gy, a)
+                    wys[c, 0], wys[c, 1], wys[c, 2], wys[c, 3] = w0, w1, w2, w3
+                for c in range(Wo):
+                    if ok[c]:
+                        blend_rgb_at(flat, off[c], W3, wxs, wys, c, N, zero, is_int, hi_t, oflat, (r * Wo + c) * 3)
+                    else:
+                        todo[n_todo] = c
+                        n_todo += 1
+            for c in range(0 if TWO else Wo):
                 x, y = coords(mp, r, c, KIND)
                 # near the image (False for NaN), so the tap indices below are plain integers
                 if not ((x > -N) & (x < W + N) & (y > -N) & (y < H + N)):
@@ -149,7 +192,7 @@ def _make(N: int, KIND: int, RGB: int = 0):
                 y0, wy = taps(y, a, N)
                 base = y0 * W3 + x0 * 3
                 if C == 3 and x0 >= 0 and y0 >= 0 and x0 + N <= W and y0 + N <= H:
-                    if base + (N - 1) * W3 + SPAN <= n_flat:  # room for the vector loads of blend_rgb
+                    if base <= last:  # room for the vector loads of blend_rgb
                         blend_rgb(flat, base, W3, wx, wy, zero, is_int, hi_t, oflat, (r * Wo + c) * 3)
                     else:
                         blend_scalar_c3(flat, base, W3, wx, wy, zero, is_int, hi_t, oflat, (r * Wo + c) * 3)

@@ -58,20 +58,33 @@ def _to_f32(builder: ir.IRBuilder, x: ir.Value) -> ir.Value:
     return x if x.type == _F32 else builder.fptrunc(x, _F32)
 
 
-def _blend_codegen(N: int, C: int):
-    """The LLVM IR of one output pixel from N x N taps of a C-channel uint8 image."""
+def _blend_codegen(N: int, C: int, rows: bool = False):
+    """The LLVM IR of one output pixel from N x N taps of a C-channel uint8 image; the weights
+    are two tuples of N floats, or (rows=True) row i of two float32 arrays (n, N)."""
     B = span(N, C)
     L = 4 * N  # N pixels, 4 lanes each
     flags = ("contract",)
 
     def codegen(context, builder, signature, args):
-        src = context.make_array(signature.args[0])(context, builder, args[0]).data
-        dst = context.make_array(signature.args[5])(context, builder, args[5]).data
         sa = signature.args
-        off, stride, doff = (context.cast(builder, args[i], sa[i], types.int64) for i in (1, 2, 6))
-        wxt, wyt = args[3], args[4]
-        wx = [_to_f32(builder, builder.extract_value(wxt, k)) for k in range(N)]
-        wy = [_to_f32(builder, builder.extract_value(wyt, k)) for k in range(N)]
+        d = 1 if rows else 0  # the arguments after wy move by one: i comes in
+        src = context.make_array(sa[0])(context, builder, args[0]).data
+        dst = context.make_array(sa[5 + d])(context, builder, args[5 + d]).data
+        off, stride, doff = (context.cast(builder, args[i], sa[i], types.int64) for i in (1, 2, 6 + d))
+        if rows:  # one vector load of the N horizontal weights, a scalar load per vertical one
+            i = context.cast(builder, args[5], sa[5], types.int64)
+            at = builder.mul(i, ir.Constant(_I64, N))
+            wxp, wyp = (builder.gep(context.make_array(sa[k])(context, builder, args[k]).data, [at]) for k in (3, 4))
+            wxv = builder.load(builder.bitcast(wxp, _V(_F32, N).as_pointer()), align=4)
+            wv = builder.shuffle_vector(wxv, wxv, _mask([k for k in range(N) for _ in range(4)]))
+            wy = [builder.load(builder.gep(wyp, [ir.Constant(_I64, j)]), align=4) for j in range(N)]
+        else:
+            wx = [_to_f32(builder, builder.extract_value(args[3], k)) for k in range(N)]
+            wy = [_to_f32(builder, builder.extract_value(args[4], k)) for k in range(N)]
+            wv = ir.Constant(_V(_F32, L), ir.Undefined)  # each weight over its pixel's 4 lanes
+            for k in range(N):
+                for ch in range(4):
+                    wv = builder.insert_element(wv, wx[k], ir.Constant(_I32, 4 * k + ch))
         # byte k*C + ch of the row -> lane 4k + ch; lane 4k + 3 = 0 for RGB (index B: the zeros)
         shuffle = _mask([k * C + ch if ch < C else B for k in range(N) for ch in range(4)])
         zeros = ir.Constant(_V(_I8, B), None)
@@ -83,10 +96,6 @@ def _blend_codegen(N: int, C: int):
             f = builder.sitofp(builder.zext(lanes, _V(_I32, L)), _V(_F32, L))
             t = builder.fmul(f, _splat(builder, wy[j], L), flags=flags)
             acc = t if acc is None else builder.fadd(acc, t, flags=flags)
-        wv = ir.Constant(_V(_F32, L), ir.Undefined)
-        for k in range(N):
-            for ch in range(4):
-                wv = builder.insert_element(wv, wx[k], ir.Constant(_I32, 4 * k + ch))
         acc = builder.fmul(acc, wv, flags=flags)
         parts = [builder.shuffle_vector(acc, acc, _mask(range(4 * k, 4 * k + 4))) for k in range(N)]
         while len(parts) > 1:  # pairwise sums of the N groups
@@ -136,6 +145,23 @@ def _make_intrinsic(C: int):
 blend_u8c3 = _make_intrinsic(3)
 
 
+def _is_weight_rows(a) -> bool:
+    return isinstance(a, types.Array) and a.dtype == types.float32 and a.ndim == 2 and a.layout == "C"
+
+
+@intrinsic(prefer_literal=True)
+def blend_u8c3_at(typingctx, src, off, stride, wxs, wys, i, dst, doff, n):
+    """blend_u8c3 with the weights of row i of two C-contiguous float32 arrays (m, n), n (2, 4
+    or 6) a compile-time constant that the caller makes the arrays' second dimension: the
+    horizontal weights come in one vector load instead of n scalar ones and 4n inserts."""
+    if not (_is_u8_vector(src) and _is_u8_vector(dst) and _is_weight_rows(wxs) and _is_weight_rows(wys)
+            and isinstance(n, types.IntegerLiteral) and n.literal_value in (2, 4, 6)
+            and all(isinstance(t, types.Integer) for t in (off, stride, i, doff))):
+        return None
+    sig = types.void(src, off, stride, wxs, wys, i, dst, doff, n)
+    return sig, _blend_codegen(n.literal_value, 3, rows=True)
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def blend_scalar_c3(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
     """The same sum for 3 channels in scalar code, in the type of ``zero``, for every dtype."""
@@ -162,6 +188,26 @@ def blend_scalar_c3(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff)
         oflat[doff] = a0
         oflat[doff + 1] = a1
         oflat[doff + 2] = a2
+
+
+def blend_rgb_at(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):  # pragma: no cover
+    """``blend_rgb`` with the weights in row i of two float32 arrays (m, n), n a compile-time
+    constant: ``blend_u8c3_at`` for uint8, the scalar code for the other dtypes. numba only."""
+    raise NotImplementedError("blend_rgb_at is compiled by numba only")
+
+
+@overload(blend_rgb_at, prefer_literal=True, jit_options={"cache": True})
+def _blend_rgb_at(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):
+    if not isinstance(n, types.IntegerLiteral):
+        return None
+    if _is_u8_vector(flat) and _is_u8_vector(oflat) and _is_weight_rows(wxs) and _is_weight_rows(wys):
+        def simd(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
+            blend_u8c3_at(flat, base, stride, wxs, wys, i, oflat, doff, n)
+        return simd
+
+    def scalar(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):  # pragma: no cover - numba
+        blend_scalar_c3(flat, base, stride, wxs[i], wys[i], zero, is_int, hi_t, oflat, doff)
+    return scalar
 
 
 def blend_rgb(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff):  # pragma: no cover
