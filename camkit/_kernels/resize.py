@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from camkit._kernels.simd import split_even_odd_c3
+
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
 def _vertical_row(src, s, wrow, zero, acc) -> None:  # pragma: no cover - numba
@@ -75,7 +77,13 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
     loops over a row, the innermost ones, vectorise with the taps in registers (measured per
     12 MP halving, one core: vertical 13 -> 8 ms, horizontal 15.5 -> 7 ms). With a known
     STEP, each iteration makes two output rows, converting each input byte once for both
-    (12 MP RGB halving, both cores: 8.7 against 10.0 ms; four rows at once did not vectorise)."""
+    (12 MP RGB halving, both cores: 8.7 against 10.0 ms; four rows at once did not vectorise).
+    RGB halving (C = 3, STEP = 2): each vertical sum is split into its even and its odd pixels
+    (``split_even_odd_c3``, explicit SIMD), so the horizontal filter runs at the output rate
+    along both halves, unit-stride, storing straight into the output row: half the FMAs of the
+    full-rate filter and no strided pick (12 MP halving, one process, 41 alternated calls:
+    8.2 -> 7.5 ms, cv2 INTER_AREA 4.2 ms)."""
+    EO = int(C == 3 and STEP == 2 and KX > 0)
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy", fastmath={"contract"})
     def kernel(src, sy, wy, sx, wx, zero, is_int, hi, out, pw, step, first, c0, c1):  # pragma: no cover - numba
@@ -130,12 +138,35 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                             a += wt[k] * src[st + k, i]
                         acct[i] = a
             stp = STEP if STEP > 0 else step
-            n = (stp * (c1 - 1 - c0) + 1) * C if KX > 0 and c0 < c1 else 0
+            n = (stp * (c1 - 1 - c0) + 1) * C if KX > 0 and c0 < c1 and not EO else 0
             full = np.empty(n, type(zero))  # the full-rate row, shared by the rows made here
+            if EO:
+                n_even = (L // 3 + 1) // 2
+                eo = np.empty(L, type(zero))  # the even pixels, then the odd ones
+                # tap k of output c0 is pixel 2 c0 + first + k: even taps in one half, odd in
+                # the other, at consecutive pixels
+                sa = first
+                sb = first + 1
+                a0 = C * (c0 + sa // 2) + (C * n_even if sa % 2 else 0)
+                b0 = C * (c0 + sb // 2) + (C * n_even if sb % 2 else 0)
             for t in range(nrows):
                 acct = acc[t]
                 orow = out[j + t].reshape(-1)
-                if KX > 0 and c0 < c1:
+                if EO and c0 < c1:
+                    split_even_odd_c3(acct, L // 3, eo, C * n_even)
+                    ea = eo[a0:]
+                    eb = eo[b0:]
+                    o = orow[c0 * C:]
+                    for i in range((c1 - c0) * C):
+                        a = zero
+                        for m in range(KX // 2):
+                            a += v[2 * m] * ea[i + 3 * m] + v[2 * m + 1] * eb[i + 3 * m]
+                        if KX % 2:
+                            a += v[KX - 1] * ea[i + 3 * (KX // 2)]
+                        o[i] = _store(a, is_int, hi)
+                    _horizontal_row(acct, sx, wx, C, zero, is_int, hi, orow, 0, c0)
+                    _horizontal_row(acct, sx, wx, C, zero, is_int, hi, orow, c1, Wo)
+                elif KX > 0 and c0 < c1:
                     seg = acct[(stp * c0 + first) * C:]
                     for i in range(n):
                         a = zero

@@ -190,6 +190,72 @@ def blend_scalar_c3(flat, base, stride, wx, wy, zero, is_int, hi_t, oflat, doff)
         oflat[doff + 2] = a2
 
 
+def _is_f32_vector(a) -> bool:
+    return isinstance(a, types.Array) and a.dtype == types.float32 and a.ndim == 1 and a.layout == "C"
+
+
+@intrinsic
+def evens8_f32c3(typingctx, src, so, dst, do):
+    """dst[do + 3 m + ch] = src[so + 6 m + ch] for m < 8, ch < 3: every other pixel of 16 RGB
+    pixels of a float32 row, as six vector loads, five two-vector shuffles and three vector
+    stores (a loop of scalar copies does not vectorise). Reads src[so : so + 48]."""
+    if not (_is_f32_vector(src) and _is_f32_vector(dst) and isinstance(so, types.Integer)
+            and isinstance(do, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        sa = signature.args
+        s = context.make_array(sa[0])(context, builder, args[0]).data
+        d = context.make_array(sa[2])(context, builder, args[2]).data
+        so_, do_ = (context.cast(builder, args[k], sa[k], types.int64) for k in (1, 3))
+        x = [builder.load(builder.bitcast(builder.gep(s, [builder.add(so_, ir.Constant(_I64, 8 * k))]),
+                                          _V(_F32, 8).as_pointer()), align=4) for k in range(6)]
+
+        def sh(a, b, idx):
+            return builder.shuffle_vector(a, b, _mask(idx))
+        # floats 0-2 6-8 12-14 18-20 24-26 30-32 36-38 42-44 of the 48, eight to a vector
+        y0 = sh(x[0], x[1], [0, 1, 2, 6, 7, 8, 12, 13])
+        y1 = sh(sh(x[1], x[2], [6, 10, 11, 12, 0, 0, 0, 0]), x[3], [0, 1, 2, 3, 8, 9, 10, 14])
+        y2 = sh(sh(x[3], x[4], [7, 8, 12, 13, 14, 0, 0, 0]), x[5], [0, 1, 2, 3, 4, 10, 11, 12])
+        for k, y in enumerate((y0, y1, y2)):
+            p = builder.gep(d, [builder.add(do_, ir.Constant(_I64, 8 * k))])
+            builder.store(y, builder.bitcast(p, _V(_F32, 8).as_pointer()), align=4)
+        return context.get_dummy_value()
+
+    return types.void(src, so, dst, do), codegen
+
+
+def split_even_odd_c3(row, width, dst, odd_at):  # pragma: no cover - numba only
+    """dst[3 q + ch] = pixel 2q of the 3-channel ``row`` (``width`` pixels), dst[odd_at + 3 q + ch]
+    = pixel 2q + 1: SIMD for float32 rows, a scalar loop otherwise. numba only."""
+    raise NotImplementedError("split_even_odd_c3 is compiled by numba only")
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _split_scalar_c3(row, start, width, dst, odd_at):  # pragma: no cover - numba
+    for p in range(start, width):
+        d = 3 * (p // 2) + (odd_at if p % 2 else 0)
+        for ch in range(3):
+            dst[d + ch] = row[3 * p + ch]
+
+
+@overload(split_even_odd_c3, jit_options={"cache": True})
+def _split_even_odd_c3(row, width, dst, odd_at):
+    if _is_f32_vector(row) and _is_f32_vector(dst):
+        def simd(row, width, dst, odd_at):  # pragma: no cover - numba
+            # blocks of 16 pixels; the odd half of block b reads row[48 b + 3 : 48 b + 51]
+            nb = (3 * width - 51) // 48 + 1 if width >= 17 else 0
+            for b in range(nb):
+                evens8_f32c3(row, 48 * b, dst, 24 * b)
+                evens8_f32c3(row, 48 * b + 3, dst, odd_at + 24 * b)
+            _split_scalar_c3(row, 16 * nb, width, dst, odd_at)
+        return simd
+
+    def scalar(row, width, dst, odd_at):  # pragma: no cover - numba
+        _split_scalar_c3(row, 0, width, dst, odd_at)
+    return scalar
+
+
 def blend_rgb_at(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):  # pragma: no cover
     """``blend_rgb`` with the weights in row i of two float32 arrays (m, n), n a compile-time
     constant: ``blend_u8c3_at`` for uint8, the scalar code for the other dtypes. numba only."""

@@ -5,8 +5,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from numba import njit
 from PIL import Image
 
+from camkit._kernels.simd import split_even_odd_c3
 from camkit.errors import ParameterError
 from camkit.resample import RESIZE_INTERPOLATIONS, resize, resize_weights
 
@@ -179,11 +181,34 @@ def test_enlarging_matches_the_separable_filter(interpolation, geometry, C):
     _check_float64_and_uint8(img, h, w, interpolation, uint8=(interpolation, geometry, C) == _ENLARGE_CASES[2])
 
 
-def test_halving_matches_the_separable_filter():
+@pytest.mark.parametrize(("H", "W"), [(66, 64), (20, 34), (16, 100)])
+def test_halving_matches_the_separable_filter(H, W):
     # The halving kernel makes two output rows per iteration where their input windows are
     # STEP rows apart (and one at a time near the borders and for an odd last row): 33 output
-    # rows from 66 exercise all three.
-    _check_float64_and_uint8(np.random.default_rng(5).random((66, 64, 3)), 33, 32)
+    # rows from 66 exercise all three. In RGB it splits each vertical sum into even and odd
+    # pixels, 16 at a time (SIMD for float32, so for uint8 images) and the rest one by one:
+    # widths 64, 34 and 100 leave 16, 2 and 4 pixels for the scalar tail.
+    _check_float64_and_uint8(np.random.default_rng(5).random((H, W, 3)), H // 2, W // 2)
+
+
+@njit(cache=True)
+def _split(row, width, dst, odd_at):  # pragma: no cover - numba
+    split_even_odd_c3(row, width, dst, odd_at)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("width", [1, 2, 16, 17, 18, 33, 50, 51, 67])
+def test_even_odd_split_of_rgb_rows(dtype, width):
+    # The split of the halving kernel: the SIMD blocks of 16 pixels (float32) and the scalar
+    # rest must put pixel 2q at 3q and pixel 2q + 1 at odd_at + 3q, and write nothing else.
+    row = np.arange(1, 3 * width + 1, dtype=dtype)
+    n_even = (width + 1) // 2
+    dst = np.full(3 * width + 5, -1.0, dtype)
+    _split(row, width, dst, 3 * n_even)
+    px = row.reshape(width, 3)
+    assert np.array_equal(dst[:3 * n_even], px[0::2].ravel())
+    assert np.array_equal(dst[3 * n_even:3 * width], px[1::2].ravel())
+    assert np.all(dst[3 * width:] == -1.0)
 
 
 @pytest.mark.parametrize(("H", "W", "h", "w"), [(66, 64, 33, 64), (30, 64, 45, 32)])
