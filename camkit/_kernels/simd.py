@@ -1,4 +1,6 @@
-"""Explicit SIMD for the pixel gathers of remap and the warps, on uint8 RGB images.
+"""Explicit SIMD for the pixel gathers of remap and the warps, on uint8 RGB images, and for
+the even/odd split of the RGB halving (``split_even_odd_c3``: every other pixel of 16 as five
+two-vector shuffles; a loop of 3-float copies with a stride of 6 does not vectorise).
 
 Why LLVM IR here: numba's auto-vectoriser cannot vectorise a gather of a few neighbouring
 pixels at a scattered address, so for each tap it emits one scalar byte load and one
@@ -18,8 +20,10 @@ Measured (4000x3000 RGB through a full-resolution undistortion map, both cores, 
 of ``python -m benchmarks -k remap``): bicubic 313-334 -> ~150 ms (cv2.remap INTER_CUBIC
 156-179 ms); bilinear 90-99 -> 75-81 ms (cv2.remap INTER_LINEAR 68-78 ms).
 
-``blend_rgb`` is the entry point for kernels compiled for every dtype: the SIMD code for
-uint8, the scalar sum for the others (identical results up to float32 rounding).
+``blend_rgb`` (weights as tuples) and ``blend_rgb_at`` (weights as rows of two float32
+arrays, which phase 1 of the bicubic kernel fills vectorised) are the entry points for kernels
+compiled for every dtype: the SIMD code for uint8, the scalar sum for the others (identical
+results up to float32 rounding).
 """
 
 from __future__ import annotations
