@@ -9,7 +9,9 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from numba import njit
 
+from camkit._kernels.simd import unzip_xy
 from camkit.errors import CamkitError, ParameterError, ShapeError
 from camkit.resample import INTERPOLATIONS, kernel, remap, warp_affine, warp_perspective
 
@@ -190,3 +192,40 @@ def test_uint8_rgb_vector_loads_stay_inside_the_image(method, family):
         out = warp(img, A[:2] if family == "affine" else A, width=mp.shape[1], height=mp.shape[0],
                    interpolation=method, border="replicate")
     assert np.abs(out.astype(int) - ref).max() <= 1
+
+
+@pytest.mark.parametrize("method", ["bilinear", "bicubic"])
+@pytest.mark.parametrize("border", ["constant", "reflect"])
+@pytest.mark.parametrize("w", [19, 37])
+def test_uint8_rgb_with_a_float32_map(method, border, w):
+    # The uint8 RGB kernels split each row of a float32 map into x and y with vector shuffles
+    # (8 pixels at a time; widths 19 and 37 leave 3 and 5 to the scalar rest), and bilinear
+    # stores 4 bytes for every pixel but a row's last: all against the float64 reference,
+    # NaN and positions outside among them.
+    img = _image(np.uint8, 3)
+    mp = _map(h=9, w=w, dtype=np.float32)
+    mp[2, 5] = np.nan
+    mp[4, -1, 0] = np.nan
+    out = remap(img, mp, interpolation=method, border=border, fill_value=7)
+    ref = to_dtype(remap_reference(img, mp.astype(np.float64), method, border, 7), np.uint8)
+    assert np.abs(out.astype(int) - ref).max() <= 1
+    assert (out[2, 5] == 7).all() and (out[4, -1] == 7).all()
+
+
+@njit(cache=True)
+def _unzip(flat, start, n, xs, ys):  # pragma: no cover - numba
+    unzip_xy(flat, start, n, xs, ys)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 16, 23])
+def test_map_rows_split_into_x_and_y(dtype, n):
+    # xs[k] = flat[start + 2k], ys[k] = flat[start + 2k + 1]: blocks of 8 in SIMD (float32) and
+    # the rest scalar, nothing written past n.
+    flat = np.arange(2 * n + 6, dtype=dtype)
+    xs = np.full(n + 3, -1.0, dtype)
+    ys = np.full(n + 3, -1.0, dtype)
+    _unzip(flat, 4, n, xs, ys)
+    assert np.array_equal(xs[:n], flat[4:4 + 2 * n:2])
+    assert np.array_equal(ys[:n], flat[5:5 + 2 * n:2])
+    assert np.all(xs[n:] == -1.0) and np.all(ys[n:] == -1.0)
