@@ -466,3 +466,13 @@ RGB = {family: tuple(_make(n, kind, 1) for n in _N_TAPS)
 #: The uint8 RGB bilinear specialisations, by source of coordinates.
 BILINEAR_U8C3 = {"map": _make_bilinear_u8c3(0), "affine": _make_bilinear_u8c3(1),
                  "perspective": _make_bilinear_u8c3(2)}
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def touch_pages(flat):  # pragma: no cover - numba
+    """Write 0 to one byte of every 4 KiB page of ``flat`` (a fresh allocation's page faults,
+    on every core), in blocks of 1 MiB."""
+    n = flat.shape[0]
+    for b in prange((n + (1 << 20) - 1) >> 20):
+        for i in range(b << 20, min(n, (b + 1) << 20), 4096):
+            flat[i] = 0
