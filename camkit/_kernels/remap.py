@@ -300,10 +300,10 @@ def _make_bilinear_u8c3(KIND: int, TR: int = 32, TC: int = 128):
     one process, 21 alternated calls: the split and int32 offsets 78 -> 66 ms, the 4-byte
     stores 66 -> 64, the lerps 63 -> 51 ms (cv2.remap float32 maps 70 ms, CV_16SC2 55 ms); the
     perspective warp 83 -> 62 ms (cv2.warpPerspective 80 ms); the offsets multiplied in 32 bits
-    (``offset_i32``; numba's int32 products are int64) 46.5 -> 43.8 and 62.8 -> 58.4 ms. For a map, the pixels whose
-    taps leave the image (or whose vector loads would) take the border rules after phase 2,
-    out of its loop, which then keeps its constants in registers (50 -> 46 ms); for the
-    warps, phase 2 writes the fill value and the pixels that need the border rules are redone
+    (``offset_i32``; numba's int32 products are int64) 46.5 -> 43.8 and 62.8 -> 58.4 ms. For a
+    map, the pixels whose taps leave the image (or whose vector loads would) take the border
+    rules after phase 2, out of its loop, which then keeps its constants in registers (50 -> 46
+    ms); for the warps, phase 2 writes the fill value and the pixels that need the border rules are redone
     by a second kernel, ``fix`` (that slow path anywhere in the warps' first kernel, even in a
     loop of its own, cost it 10-15%)."""
 
