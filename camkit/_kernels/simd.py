@@ -31,6 +31,10 @@ the 12 MP undistortion, one process: 63 -> 51 ms against ``blend_u8c3`` (N = 2).
 shuffles: the kernels' loops over a row then read unit-stride and vectorise (read in place,
 at a stride of two floats, LLVM left them scalar).
 
+``vsum_eo_u8c3`` and ``filter_eo_u8`` are the uint8 RGB halving's two passes: G vertical
+sums of 8 pixels at a time stored split into even and odd pixels, and the output-rate
+horizontal filter with its weights broadcast once per row and a saturating narrowing to bytes.
+
 ``blend_rgb`` (weights as tuples) and ``blend_rgb_at`` (weights as rows of two float32
 arrays, which phase 1 of the bicubic kernel fills vectorised) are the entry points for kernels
 compiled for every dtype: the SIMD code for uint8, the scalar sum for the others (identical
@@ -42,6 +46,7 @@ from __future__ import annotations
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
+from numba.core import cgutils
 from numba.extending import intrinsic, overload
 
 from camkit._kernels.interp import sat
@@ -394,6 +399,168 @@ def _split_even_odd_c3(row, width, dst, odd_at):
     def scalar(row, width, dst, odd_at):  # pragma: no cover - numba
         _split_scalar_c3(row, 0, width, dst, odd_at)
     return scalar
+
+
+def _is_u8_rows(a) -> bool:
+    return isinstance(a, types.Array) and a.dtype == types.uint8 and a.ndim == 2 and a.layout == "C"
+
+
+#: Of 8 RGB pixels (24 floats): the floats of pixels 0, 2, 4, 6, and of pixels 1, 3, 5, 7.
+_EVEN_C3 = [3 * p + ch for p in (0, 2, 4, 6) for ch in range(3)]
+_ODD_C3 = [3 * p + ch for p in (1, 3, 5, 7) for ch in range(3)]
+
+
+@intrinsic(prefer_literal=True)
+def vsum_eo_u8c3(typingctx, src, s, w, eo, odd_at, nb, KY, STEP, G):
+    """For t < G and the first 8 nb pixels of the uint8 RGB rows ``src`` (H, 3 W): the vertical
+    sum v_t = sum_k w[t, k] src[s + t STEP + k] of KY rows, in float32, stored split into its
+    even and odd pixels: pixel 2q at eo[t, 3q], pixel 2q + 1 at eo[t, odd_at + 3q].
+
+    One loop over blocks of 8 pixels (24 bytes): each of the KY + (G - 1) STEP input rows is
+    loaded and converted once, as three vectors of 8, and added into the G sums that use it
+    (the FMAs in the order k = 0, 1, ..., as the scalar code sums); each sum's three vectors
+    are then shuffled into 4 even and 4 odd pixels and stored. Rows are read from
+    src[s : s + KY + (G - 1) STEP]; the caller keeps them inside src."""
+    if not (_is_u8_rows(src) and _is_weight_rows(w) and _is_weight_rows(eo)
+            and all(isinstance(t, types.Integer) for t in (s, odd_at, nb))
+            and all(isinstance(t, types.IntegerLiteral) for t in (KY, STEP, G))):
+        return None
+    ky, st, g = KY.literal_value, STEP.literal_value, G.literal_value
+    flags = ("contract",)
+
+    def codegen(context, builder, signature, args):
+        sa = signature.args
+        sarr = context.make_array(sa[0])(context, builder, args[0])
+        earr = context.make_array(sa[3])(context, builder, args[3])
+        pw = context.make_array(sa[2])(context, builder, args[2]).data
+        stride = cgutils.unpack_tuple(builder, sarr.shape, 2)[1]  # C-contiguous uint8: bytes per row
+        erow = cgutils.unpack_tuple(builder, earr.shape, 2)[1]
+        s_, odd, nb_ = (context.cast(builder, args[k], sa[k], types.int64) for k in (1, 4, 5))
+        wv = [[_splat(builder, builder.load(builder.gep(pw, [ir.Constant(_I64, t * ky + k)])), 8) for k in range(ky)]
+              for t in range(g)]
+        base = builder.mul(s_, stride)
+        with cgutils.for_range(builder, nb_) as loop:
+            b = loop.index
+            off = builder.add(base, builder.mul(b, ir.Constant(_I64, 24)))
+            acc = [[None] * 3 for _ in range(g)]
+            for k in range(ky + (g - 1) * st):
+                rp = builder.add(off, builder.mul(stride, ir.Constant(_I64, k)))
+                xs = []
+                for j in range(3):
+                    p = builder.gep(sarr.data, [builder.add(rp, ir.Constant(_I64, 8 * j))])
+                    by = builder.load(builder.bitcast(p, _V(_I8, 8).as_pointer()), align=1)
+                    xs.append(builder.uitofp(builder.zext(by, _V(_I32, 8)), _V(_F32, 8)))
+                for t in range(g):
+                    kk = k - t * st
+                    if 0 <= kk < ky:
+                        for j in range(3):
+                            m = builder.fmul(xs[j], wv[t][kk], flags=flags)
+                            acc[t][j] = m if acc[t][j] is None else builder.fadd(acc[t][j], m, flags=flags)
+            even = builder.mul(b, ir.Constant(_I64, 12))
+            odd_b = builder.add(even, odd)
+            for t in range(g):
+                v0, v1, v2 = acc[t]
+                both = builder.shuffle_vector(v0, v1, _mask(range(16)))
+                v2w = builder.shuffle_vector(v2, v2, _mask(list(range(8)) + [0] * 8))
+                px = builder.shuffle_vector(both, v2w, _mask(range(24)))
+                rb = builder.mul(erow, ir.Constant(_I64, t))
+                for o, idx in ((even, _EVEN_C3), (odd_b, _ODD_C3)):
+                    part = builder.shuffle_vector(px, px, _mask(idx))
+                    q = builder.gep(earr.data, [builder.add(rb, o)])
+                    builder.store(part, builder.bitcast(q, _V(_F32, 12).as_pointer()), align=4)
+        return context.get_dummy_value()
+
+    return types.void(src, s, w, eo, odd_at, nb, KY, STEP, G), codegen
+
+
+def vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba only
+    """For uint8 RGB rows ``src`` (H, 3 W): ``vsum_eo_u8c3`` over all W pixels (the last W % 8
+    in scalar code, in the same order of sums), returning True; for other dtypes nothing is
+    done and it returns False (the caller sums and splits itself). numba only."""
+    raise NotImplementedError("vertical_even_odd_c3 is compiled by numba only")
+
+
+@overload(vertical_even_odd_c3, prefer_literal=True, jit_options={"cache": True})
+def _vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):
+    if not all(isinstance(t, types.IntegerLiteral) for t in (KY, STEP, G)):
+        return None
+    if _is_u8_rows(src) and _is_weight_rows(w) and _is_weight_rows(eo):
+        def simd(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
+            npx = src.shape[1] // 3
+            nb = npx // 8
+            vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
+            for p in range(8 * nb, npx):
+                d = 3 * (p >> 1) + (odd_at if p & 1 else 0)
+                for t in range(G):
+                    for ch in range(3):
+                        a = np.float32(0.0)
+                        for k in range(KY):
+                            a += w[t, k] * np.float32(src[s + t * STEP + k, 3 * p + ch])
+                        eo[t, d + ch] = a
+            return True
+        return simd
+
+    def other(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
+        return False
+    return other
+
+
+@intrinsic(prefer_literal=True)
+def filter_eo_u8(typingctx, ea, eb, v, out, n, K):
+    """out[i] = the uint8 of sum_m (v[2m] ea[i + 3m] + v[2m + 1] eb[i + 3m]), plus
+    v[K - 1] ea[i + 3 (K // 2)] for odd K, rounded half up and saturated, for i < 8 (n // 8):
+    the halving's horizontal filter at the output rate along the even (ea) and odd (eb)
+    pixels. The K weights are loaded and broadcast once, before the loop; per 8 outputs, K
+    FMAs from +0.5, truncation and a saturating narrowing to bytes (no float min/max)."""
+    if not (_is_f32_vector(ea) and _is_f32_vector(eb) and _is_f32_vector(v) and _is_u8_vector(out)
+            and isinstance(n, types.Integer) and isinstance(K, types.IntegerLiteral)):
+        return None
+    kk = K.literal_value
+    flags = ("contract",)
+
+    def codegen(context, builder, signature, args):
+        sa = signature.args
+        pa, pb, pv, po = (context.make_array(sa[k])(context, builder, args[k]).data for k in range(4))
+        nb = builder.sdiv(context.cast(builder, args[4], sa[4], types.int64), ir.Constant(_I64, 8))
+        w = [_splat(builder, builder.load(builder.gep(pv, [ir.Constant(_I64, k)])), 8) for k in range(kk)]
+        lo = ir.Constant(_V(_I32, 8), [0] * 8)
+        hi = ir.Constant(_V(_I32, 8), [255] * 8)
+        with cgutils.for_range(builder, nb) as loop:
+            i = builder.mul(loop.index, ir.Constant(_I64, 8))
+            acc = ir.Constant(_V(_F32, 8), [0.5] * 8)
+            for k in range(kk):
+                p = builder.gep(pa if k % 2 == 0 else pb, [builder.add(i, ir.Constant(_I64, 3 * (k // 2)))])
+                x = builder.load(builder.bitcast(p, _V(_F32, 8).as_pointer()), align=4)
+                acc = builder.fadd(acc, builder.fmul(x, w[k], flags=flags), flags=flags)
+            q = builder.fptosi(acc, _V(_I32, 8))
+            q = builder.select(builder.icmp_signed("<", q, lo), lo, q)
+            q = builder.select(builder.icmp_signed(">", q, hi), hi, q)
+            dst = builder.bitcast(builder.gep(po, [i]), _V(_I8, 8).as_pointer())
+            builder.store(builder.trunc(q, _V(_I8, 8)), dst, align=1)
+        return context.get_dummy_value()
+
+    return types.void(ea, eb, v, out, n, K), codegen
+
+
+def filter_even_odd(ea, eb, v, out, n, K):  # pragma: no cover - numba only
+    """``filter_eo_u8`` for uint8 outputs, returning how many outputs it made (8 (n // 8));
+    0 for other dtypes (the caller filters them all). numba only."""
+    raise NotImplementedError("filter_even_odd is compiled by numba only")
+
+
+@overload(filter_even_odd, prefer_literal=True, jit_options={"cache": True})
+def _filter_even_odd(ea, eb, v, out, n, K):
+    if not isinstance(K, types.IntegerLiteral):
+        return None
+    if _is_f32_vector(ea) and _is_f32_vector(eb) and _is_f32_vector(v) and _is_u8_vector(out):
+        def simd(ea, eb, v, out, n, K):  # pragma: no cover - numba
+            filter_eo_u8(ea, eb, v, out, n, K)
+            return n // 8 * 8
+        return simd
+
+    def other(ea, eb, v, out, n, K):  # pragma: no cover - numba
+        return 0
+    return other
 
 
 def blend_rgb_at(flat, base, stride, wxs, wys, i, n, zero, is_int, hi_t, oflat, doff):  # pragma: no cover

@@ -181,13 +181,17 @@ def test_enlarging_matches_the_separable_filter(interpolation, geometry, C):
     _check_float64_and_uint8(img, h, w, interpolation, uint8=(interpolation, geometry, C) == _ENLARGE_CASES[2])
 
 
-@pytest.mark.parametrize(("H", "W"), [(66, 64), (20, 34), (16, 100)])
+@pytest.mark.parametrize(("H", "W"), [(66, 64), (20, 34), (24, 100)])
 def test_halving_matches_the_separable_filter(H, W):
     # The halving kernel makes two output rows per iteration where their input windows are
     # STEP rows apart (and one at a time near the borders and for an odd last row): 33 output
     # rows from 66 exercise all three. In RGB it splits each vertical sum into even and odd
-    # pixels, 16 at a time (SIMD for float32, so for uint8 images) and the rest one by one:
-    # widths 64, 34 and 100 leave 16, 2 and 4 pixels for the scalar tail.
+    # pixels, 16 at a time (SIMD for float32) and the rest one by one: widths 64, 34 and 100
+    # leave 16, 2 and 4 pixels for the scalar tail. uint8 RGB takes four rows per iteration
+    # where their windows are STEP apart (6 of the 9 groups of 4 from 66 rows, 1 of 3 from 20
+    # and from 24), summed 8 pixels at a time and stored split (widths 34 and 100 leave 2 and
+    # 4 pixels to the scalar sums); its horizontal filter makes 8 values at a time (84, 39 and
+    # 138 values between the border outputs: a rest of 4, 7 and 2).
     _check_float64_and_uint8(np.random.default_rng(5).random((H, W, 3)), H // 2, W // 2)
 
 
