@@ -10,7 +10,8 @@ negative costs numba a wrap-around test per load, which also stops vectorisation
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit, prange, types
+from numba.extending import overload
 
 from camkit._kernels.simd import filter_even_odd, split_even_odd_c3, vertical_even_odd_c3
 
@@ -92,6 +93,17 @@ def _horizontal_row_eo(eo, odd_at, starts, weights, zero, is_int, hi, orow, c0, 
         orow[3 * c + 2] = _store(a2, is_int, hi)
 
 
+def _is_uint8(a) -> bool:  # pragma: no cover - numba only
+    """Whether ``a`` is a uint8 array, as a compile-time constant. numba only."""
+    raise NotImplementedError("_is_uint8 is compiled by numba only")
+
+
+@overload(_is_uint8, jit_options={"cache": True})
+def _is_uint8_impl(a):
+    u8 = isinstance(a, types.Array) and a.dtype == types.uint8
+    return (lambda a: True) if u8 else (lambda a: False)
+
+
 def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
     """The shrinking kernel (both passes per output row) for KY vertical taps, C channels and,
     with KX > 0, a shared row of KX horizontal weights for the outputs away from the borders,
@@ -131,7 +143,7 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
         v = np.empty(max(KX, 1), type(zero))  # the shared horizontal weights, once per call
         for k in range(KX):
             v[k] = T(pw[k])
-        G = GROUP  # output rows per iteration
+        G = GROUP if EO and _is_uint8(src) else min(GROUP, 2)  # output rows per iteration
         Ho = out.shape[0]
         n_even = (L // 3 + 1) // 2
         for jj in prange((Ho + G - 1) // G):
@@ -151,30 +163,30 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
             # and stored split into even and odd pixels (no row of sums to split afterwards)
             fused = False
             if EO and c0 < c1 and regular:
-                fused = vertical_even_odd_c3(src, s, w, eo, C * n_even, KY, STEP, G)
-            t = 0
-            while t < nrows and not fused:
-                st = sy[j + t]
-                if STEP > 0 and t + 1 < nrows and sy[j + t + 1] == st + STEP:
-                    # Two output rows from the KY + STEP input rows they span: each input value
-                    # is converted once for both (the conversions, not the FMAs, bound this loop)
-                    w0 = w[t]
-                    w1 = w[t + 1]
-                    acc0 = acc[t]
-                    acc1 = acc[t + 1]
-                    for i in range(L):
-                        a0 = zero
-                        a1 = zero
-                        for k in range(KY + STEP):
-                            x = T(src[st + k, i])
-                            if k < KY:
-                                a0 += w0[k] * x
-                            if k >= STEP:
-                                a1 += w1[k - STEP] * x
-                        acc0[i] = a0
-                        acc1[i] = a1
-                    t += 2
-                else:
+                fused = vertical_even_odd_c3(src, s, w, eo, C * n_even, KY, STEP, GROUP)
+            if fused:
+                pass
+            elif G == 2 and nrows == 2 and sy[j + 1] == s + STEP:
+                # Two output rows from the KY + STEP input rows they span: each input value
+                # is converted once for both (the conversions, not the FMAs, bound this loop)
+                w0 = w[0]
+                w1 = w[1]
+                acc0 = acc[0]
+                acc1 = acc[1]
+                for i in range(L):
+                    a0 = zero
+                    a1 = zero
+                    for k in range(KY + STEP):
+                        x = T(src[s + k, i])
+                        if k < KY:
+                            a0 += w0[k] * x
+                        if k >= STEP:
+                            a1 += w1[k - STEP] * x
+                    acc0[i] = a0
+                    acc1[i] = a1
+            else:  # one row at a time (near the borders; uint8 RGB groups of 4 that are not regular)
+                for t in range(nrows):
+                    st = sy[j + t]
                     wt = w[t]
                     acct = acc[t]
                     for i in range(L):
@@ -182,7 +194,6 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                         for k in range(KY):
                             a += wt[k] * src[st + k, i]
                         acct[i] = a
-                    t += 1
             stp = STEP if STEP > 0 else step
             n = (stp * (c1 - 1 - c0) + 1) * C if KX > 0 and c0 < c1 and not EO else 0
             full = np.empty(n, type(zero))  # the full-rate row, shared by the rows made here
