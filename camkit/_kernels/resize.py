@@ -149,7 +149,6 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
         for jj in prange((Ho + G - 1) // G):
             j = G * jj
             nrows = min(G, Ho - j)
-            acc = np.empty((G, L), type(zero))
             w = np.empty((G, KY), type(zero))
             for t in range(nrows):
                 for k in range(KY):
@@ -164,8 +163,9 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
             fused = False
             if EO and c0 < c1 and regular:
                 fused = vertical_even_odd_c3(src, s, w, eo, C * n_even, KY, STEP, GROUP)
+            acc = np.empty((G, 0 if fused else L), type(zero))  # rows of sums, where not fused
             if fused:
-                pass
+                pass  # the sums are in eo
             elif G == 2 and nrows == 2 and sy[j + 1] == s + STEP:
                 # Two output rows from the KY + STEP input rows they span: each input value
                 # is converted once for both (the conversions, not the FMAs, bound this loop)
