@@ -14,6 +14,8 @@ import platform
 import sys
 from pathlib import Path
 
+import numba
+
 from benchmarks.harness import markdown_table, run_case
 
 MODULES = ["bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_calib"]
@@ -46,9 +48,12 @@ def main() -> int:
     if not args.no_write and not args.k:
         now = _dt.datetime.now(_dt.UTC).strftime("%Y-%m-%d %H:%M UTC")
         machine = f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+        threads = (f"numba's {numba.threading_layer()!r} threading layer with "
+                   f"OMP_WAIT_POLICY={os.environ.get('OMP_WAIT_POLICY', '(unset)')}")
         RESULTS.write_text(
             "# Benchmark results\n\n"
-            f"Measured {now} on {machine} with `python -m benchmarks`.\n"
+            f"Measured {now} on {machine} with `python -m benchmarks`,\n"
+            f"{threads} (docs/conventions.md, \"Threads\").\n"
             "Each time is the median of several repeats after warm-up calls (numba compilation\n"
             "excluded). camkit and the peer are timed alternately, call beside call, and the ratio\n"
             "is the median of those pairs' ratios: on this shared, noisy machine the ratio is what\n"
