@@ -46,7 +46,7 @@ def cases() -> list[Case]:
              "Pillow Image.resize BICUBIC", lambda: pil.resize((2000, 1500), Image.BICUBIC), target=0.1),
         Case("resize x1.5, bicubic", "4000x3000 -> 6000x4500", lambda: resize(img, width=6000, height=4500),
              "cv2.resize INTER_CUBIC", lambda: cv2.resize(img, (6000, 4500), interpolation=cv2.INTER_CUBIC),
-             target=1.0, repeats=9),
+             target=1.0, repeats=15),
         Case("warp_perspective bilinear", "4000x3000 RGB u8",
              lambda: warp_perspective(img, Hm, width=W, height=H),
              "cv2.warpPerspective INTER_LINEAR", lambda: cv2.warpPerspective(img, Hm, (W, H)), target=1.0),

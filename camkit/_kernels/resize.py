@@ -117,14 +117,14 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
     (``split_even_odd_c3``, explicit SIMD), so the horizontal filter runs at the output rate
     along both halves, unit-stride, storing straight into the output row: half the FMAs of the
     full-rate filter and no strided pick (12 MP halving, one process, 41 alternated calls:
-    8.2 -> 7.5 ms, cv2 INTER_AREA 4.2 ms).
+    8.2 -> 7.5 ms).
     uint8 RGB halving, explicit SIMD (``vertical_even_odd_c3``, ``filter_even_odd``): four
     output rows per iteration, their 14 input rows converted once for all four, the sums
     stored already split into even and odd pixels (no row of sums written, read back and
     split); the horizontal filter loads its weights once per row, adds from +0.5 and narrows
     to bytes with saturating packs (no float clamp, no per-vector test of ``is_int``). Same
     sums in the same order, so the same bytes. One process, 41 alternated calls on the 12 MP
-    image: 0.79 of the time of the two-row code (6.3 against 7.9 ms; cv2 INTER_AREA 4.8).
+    image: 0.79 of the time of the two-row code (6.3 against 7.9 ms).
     Rows near the borders, whose input windows are not STEP apart, and other dtypes take the
     two-row and one-row loops and the split."""
     EO = int(C == 3 and STEP == 2 and KX > 0)
