@@ -44,6 +44,7 @@ results up to float32 rounding).
 from __future__ import annotations
 
 import numpy as np
+from llvmlite import binding as _llvm
 from llvmlite import ir
 from numba import njit, types
 from numba.core import cgutils
@@ -51,7 +52,7 @@ from numba.extending import intrinsic, overload
 
 from camkit._kernels.interp import sat
 
-_I8, _I32, _I64, _F32 = ir.IntType(8), ir.IntType(32), ir.IntType(64), ir.FloatType()
+_I8, _I16, _I32, _I64, _F32 = ir.IntType(8), ir.IntType(16), ir.IntType(32), ir.IntType(64), ir.FloatType()
 _V = ir.VectorType
 
 
@@ -473,10 +474,105 @@ def vsum_eo_u8c3(typingctx, src, s, w, eo, odd_at, nb, KY, STEP, G):
     return types.void(src, s, w, eo, odd_at, nb, KY, STEP, G), codegen
 
 
+#: The vertical weights of the uint8 RGB halving with Keys' cubic (a = -0.5) stretched by 2,
+#: away from the borders, times 256: [-3, -9, 29, 111, 111, 29, -9, -3] (exact dyadic values).
+#: As a polynomial it has a triple root at -1: [1, 3, 3, 1] convolved with [-3, 0, 38, 0, -3].
+HALF_KEYS_256 = (-3.0, -9.0, 29.0, 111.0, 111.0, 29.0, -9.0, -3.0)
+
+
+def _host_has_avx2() -> bool:
+    try:
+        return bool(_llvm.get_host_cpu_features().get("avx2", False))
+    except Exception:  # pragma: no cover - a host llvmlite cannot describe
+        return False
+
+
+#: ``vsum_eo_u8c3_keys2`` calls AVX2's ``vpmaddwd`` (LLVM does not form it from the generic
+#: integer code here); other hosts take the float sums.
+HAS_AVX2 = _host_has_avx2()
+
+
+@intrinsic(prefer_literal=True)
+def vsum_eo_u8c3_keys2(typingctx, src, s, eo, odd_at, nb, G):
+    """``vsum_eo_u8c3`` for the weights ``HALF_KEYS_256 / 256`` in every row, STEP 2, in exact
+    integer arithmetic, for the first 16 nb pixels; the sums are stored times 256.
+
+    The weights factor as [1, 3, 3, 1] * [-3, 0, 38, 0, -3] (a triple zero at the Nyquist
+    frequency: Keys' a = -0.5 kernel reproduces quadratics, Keys 1981), so with
+    S_m = r_m + 3 r_(m+1) + 3 r_(m+2) + r_(m+3) (16-bit, <= 2040), the sum of output row t is
+    38 S_(2t+2) - 3 (S_(2t) + S_(2t+4)): a few 16-bit adds per input row, shared by the G
+    rows, and one ``vpmaddwd`` per 8 values of each row, against 8 float FMAs and a
+    conversion of every input byte. Blocks of 16 pixels (48 bytes, three 16-lane vectors per
+    row); the 16-bit lanes come out of the interleaving in the order of AVX2's unpack
+    (within 128-bit halves), which the final even/odd shuffle undoes."""
+    if not (_is_u8_rows(src) and _is_weight_rows(eo) and HAS_AVX2
+            and all(isinstance(t, types.Integer) for t in (s, odd_at, nb))
+            and isinstance(G, types.IntegerLiteral)):
+        return None
+    g = G.literal_value
+
+    def codegen(context, builder, signature, args):
+        sa = signature.args
+        sarr = context.make_array(sa[0])(context, builder, args[0])
+        earr = context.make_array(sa[2])(context, builder, args[2])
+        stride = cgutils.unpack_tuple(builder, sarr.shape, 2)[1]
+        erow = cgutils.unpack_tuple(builder, earr.shape, 2)[1]
+        s_, odd, nb_ = (context.cast(builder, args[k], sa[k], types.int64) for k in (1, 3, 4))
+        v16 = _V(_I16, 16)
+        three = ir.Constant(v16, [3] * 16)
+        wpair = ir.Constant(v16, [-3, 38] * 8)
+        pmadd = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_V(_I32, 8), [v16, v16]),
+                                               "llvm.x86.avx2.pmadd.wd")
+        base = builder.mul(s_, stride)
+        nrows = 2 * (g + 1) + 4
+        # lanes of A (pairs with B) in the order vpunpck{l,h}wd interleave them
+        halves = [[4 * h + i for i in range(4)] + [8 + 4 * h + i for i in range(4)] for h in range(2)]
+        where = {16 * j + x: 16 * j + 8 * h + n for j in range(3) for h in range(2) for n, x in enumerate(halves[h])}
+        ev_idx = [where[3 * p + ch] for p in range(0, 16, 2) for ch in range(3)]
+        od_idx = [where[3 * p + ch] for p in range(1, 16, 2) for ch in range(3)]
+        with cgutils.for_range(builder, nb_) as loop:
+            b = loop.index
+            off = builder.add(base, builder.mul(b, ir.Constant(_I64, 48)))
+            res = [[] for _ in range(g)]
+            for j in range(3):
+                R = []
+                for k in range(nrows):
+                    p = builder.gep(sarr.data, [builder.add(off, builder.add(builder.mul(stride, ir.Constant(_I64, k)),
+                                                                            ir.Constant(_I64, 16 * j)))])
+                    R.append(builder.zext(builder.load(builder.bitcast(p, _V(_I8, 16).as_pointer()), align=1), v16))
+                S = [builder.add(builder.add(R[2 * u], R[2 * u + 3]),
+                                 builder.mul(builder.add(R[2 * u + 1], R[2 * u + 2]), three)) for u in range(g + 2)]
+                for t in range(g):
+                    A = builder.add(S[t], S[t + 2])
+                    for h in range(2):
+                        pr = builder.shuffle_vector(A, S[t + 1], _mask([k for i in halves[h] for k in (i, 16 + i)]))
+                        res[t].append(builder.sitofp(builder.call(pmadd, [pr, wpair]), _V(_F32, 8)))
+            even = builder.mul(b, ir.Constant(_I64, 24))
+            odd_b = builder.add(even, odd)
+            for t in range(g):
+                v = res[t]
+                a03 = builder.shuffle_vector(builder.shuffle_vector(v[0], v[1], _mask(range(16))),
+                                             builder.shuffle_vector(v[2], v[3], _mask(range(16))), _mask(range(32)))
+                a45 = builder.shuffle_vector(v[4], v[5], _mask(range(16)))
+                a45w = builder.shuffle_vector(a45, a45, _mask(list(range(16)) + [0] * 16))
+                px = builder.shuffle_vector(a03, a45w, _mask(range(48)))
+                rb = builder.mul(erow, ir.Constant(_I64, t))
+                for o, idx in ((even, ev_idx), (odd_b, od_idx)):
+                    part = builder.shuffle_vector(px, px, _mask(idx))
+                    q = builder.gep(earr.data, [builder.add(rb, o)])
+                    builder.store(part, builder.bitcast(q, _V(_F32, 24).as_pointer()), align=4)
+        return context.get_dummy_value()
+
+    return types.void(src, s, eo, odd_at, nb, G), codegen
+
+
 def vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba only
-    """For uint8 RGB rows ``src`` (H, 3 W): ``vsum_eo_u8c3`` over all W pixels (the last W % 8
-    in scalar code, in the same order of sums), returning True; for other dtypes nothing is
-    done and it returns False (the caller sums and splits itself). numba only."""
+    """For uint8 RGB rows ``src`` (H, 3 W): the G vertical sums of all W pixels, stored split
+    into even and odd pixels, returning the factor they were stored times: 256.0 where every
+    row's weights are ``HALF_KEYS_256 / 256`` (``vsum_eo_u8c3_keys2``, exact integer sums;
+    AVX2 hosts), 1.0 otherwise (``vsum_eo_u8c3``). The last W % 16 or W % 8 pixels are summed in
+    scalar code, in the same order (exactly, for the first). For other dtypes nothing is done
+    and it returns 0.0 (the caller sums and splits itself). numba only."""
     raise NotImplementedError("vertical_even_odd_c3 is compiled by numba only")
 
 
@@ -485,23 +581,38 @@ def _vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):
     if not all(isinstance(t, types.IntegerLiteral) for t in (KY, STEP, G)):
         return None
     if _is_u8_rows(src) and _is_weight_rows(w) and _is_weight_rows(eo):
+        halving = HAS_AVX2 and KY.literal_value == 8 and STEP.literal_value == 2
+        h256 = np.array(HALF_KEYS_256, np.float32)
+
         def simd(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
             npx = src.shape[1] // 3
-            nb = npx // 8
-            vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
-            for p in range(8 * nb, npx):
+            keys = halving
+            if keys:
+                for t in range(G):
+                    for k in range(KY):
+                        keys = keys and w[t, k] * np.float32(256.0) == h256[k]
+            if keys:
+                nb = npx // 16
+                vsum_eo_u8c3_keys2(src, s, eo, odd_at, nb, G)
+                first = 16 * nb
+            else:
+                nb = npx // 8
+                vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
+                first = 8 * nb
+            for p in range(first, npx):
                 d = 3 * (p >> 1) + (odd_at if p & 1 else 0)
                 for t in range(G):
                     for ch in range(3):
                         a = np.float32(0.0)
                         for k in range(KY):
-                            a += w[t, k] * np.float32(src[s + t * STEP + k, 3 * p + ch])
+                            x = np.float32(src[s + t * STEP + k, 3 * p + ch])
+                            a += (h256[k] if keys else w[t, k]) * x
                         eo[t, d + ch] = a
-            return True
+            return np.float32(256.0) if keys else np.float32(1.0)
         return simd
 
     def other(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
-        return False
+        return np.float32(0.0)
     return other
 
 

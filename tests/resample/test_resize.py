@@ -8,7 +8,7 @@ import pytest
 from numba import njit
 from PIL import Image
 
-from camkit._kernels.simd import split_even_odd_c3
+from camkit._kernels.simd import HALF_KEYS_256, HAS_AVX2, split_even_odd_c3, vertical_even_odd_c3
 from camkit.errors import ParameterError
 from camkit.resample import RESIZE_INTERPOLATIONS, resize, resize_weights
 
@@ -123,12 +123,12 @@ def test_bad_input():
         resize(img, width=5, height=5, interpolation="cubic")
 
 
-def _separable(img, h, w, interpolation="bicubic"):
+def _separable(img, h, w, interpolation="bicubic", bicubic_a=-0.5):
     """The resize written as two float64 matrix products from the weight tables (the
     reference the kernels must equal): rows of Ry and Rx hold each output's taps."""
     H, W = img.shape[:2]
-    sy, wy = resize_weights(H, h, interpolation)
-    sx, wx = resize_weights(W, w, interpolation)
+    sy, wy = resize_weights(H, h, interpolation, bicubic_a=bicubic_a)
+    sx, wx = resize_weights(W, w, interpolation, bicubic_a=bicubic_a)
     Ry = np.zeros((h, H))
     Rx = np.zeros((w, W))
     for j in range(h):
@@ -213,6 +213,43 @@ def test_even_odd_split_of_rgb_rows(dtype, width):
     assert np.array_equal(dst[:3 * n_even], px[0::2].ravel())
     assert np.array_equal(dst[3 * n_even:3 * width], px[1::2].ravel())
     assert np.all(dst[3 * width:] == -1.0)
+
+
+@njit(cache=True)
+def _vsum(src, s, w, eo, odd_at):  # pragma: no cover - numba
+    return vertical_even_odd_c3(src, s, w, eo, odd_at, 8, 2, 4)
+
+
+@pytest.mark.parametrize("width", [16, 37, 50])
+@pytest.mark.parametrize("keys", [True, False])
+def test_fused_vertical_sums_of_the_uint8_halving(width, keys):
+    # Four rows of sums from 14 uint8 RGB rows, stored split into even and odd pixels. With
+    # Keys' halving weights (a = -0.5, away from the borders) an AVX2 host sums exactly in
+    # integers and stores the sums times 256 (16 pixels a block, the rest in scalar code:
+    # widths 16, 37 and 50 leave 0, 5 and 2); other weights take the float sums, stored as
+    # they are.
+    rng = np.random.default_rng(7)
+    src = rng.integers(0, 256, (16, 3 * width), dtype=np.uint8)
+    taps = np.array(HALF_KEYS_256) / 256 if keys else rng.normal(0.0, 0.3, 8)
+    w = np.tile(taps, (4, 1)).astype(np.float32)
+    n_even = (width + 1) // 2
+    eo = np.full((4, 3 * width), np.nan, np.float32)
+    scale = _vsum(src, 1, w, eo, 3 * n_even)
+    assert scale == (256.0 if keys and HAS_AVX2 else 1.0)
+    for t in range(4):
+        sums = (w[t].astype(np.float64) @ src[1 + 2 * t:9 + 2 * t].astype(np.float64)) * scale
+        px = sums.reshape(width, 3)
+        tol = 0.0 if scale == 256.0 else 1e-3  # integer sums are exact
+        assert np.abs(eo[t, :3 * n_even] - px[0::2].ravel()).max() <= tol
+        assert np.abs(eo[t, 3 * n_even:] - px[1::2].ravel()).max() <= tol
+
+
+def test_uint8_halving_with_other_weights_matches_the_separable_filter():
+    # a = -0.75: not Keys' a = -0.5 weights, so the uint8 RGB halving sums in float32
+    img = (np.random.default_rng(8).random((66, 100, 3)) * 255).round().astype(np.uint8)
+    out = resize(img, width=50, height=33, bicubic_a=-0.75)
+    ref = np.clip(_separable(img, 33, 50, bicubic_a=-0.75), 0, 255)
+    assert np.abs(out - ref).max() <= 0.5 + 1e-3
 
 
 @pytest.mark.parametrize(("H", "W", "h", "w"), [(66, 64, 33, 64), (30, 64, 45, 32)])
