@@ -47,7 +47,7 @@ import numpy as np
 from llvmlite import binding as _llvm
 from llvmlite import ir
 from numba import njit, types
-from numba.core import cgutils
+from numba.core import cgutils, config
 from numba.extending import intrinsic, overload
 
 from camkit._kernels.interp import sat
@@ -480,16 +480,22 @@ def vsum_eo_u8c3(typingctx, src, s, w, eo, odd_at, nb, KY, STEP, G):
 HALF_KEYS_256 = (-3.0, -9.0, 29.0, 111.0, 111.0, 29.0, -9.0, -3.0)
 
 
-def _host_has_avx2() -> bool:
+def _target_has_avx2() -> bool:
+    """Whether numba compiles for a CPU with AVX2: the host's, unless NUMBA_CPU_NAME or
+    NUMBA_CPU_FEATURES name another (as for caches shared between machines)."""
     try:
+        if config.CPU_FEATURES is not None:
+            return "+avx2" in config.CPU_FEATURES.replace(" ", "").split(",")
+        if config.CPU_NAME not in (None, "host"):
+            return False  # a named CPU without a feature list: do not guess
         return bool(_llvm.get_host_cpu_features().get("avx2", False))
     except Exception:  # pragma: no cover - a host llvmlite cannot describe
         return False
 
 
 #: ``vsum_eo_u8c3_keys2`` calls AVX2's ``vpmaddwd`` (LLVM does not form it from the generic
-#: integer code here); other hosts take the float sums.
-HAS_AVX2 = _host_has_avx2()
+#: integer code here); other targets take the float sums.
+HAS_AVX2 = _target_has_avx2()
 
 
 @intrinsic(prefer_literal=True)
@@ -566,6 +572,20 @@ def vsum_eo_u8c3_keys2(typingctx, src, s, eo, odd_at, nb, G):
     return types.void(src, s, eo, odd_at, nb, G), codegen
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _vsum_tail_c3(src, s, w, eo, odd_at, STEP, first):  # pragma: no cover - numba
+    """The scalar rest of ``vertical_even_odd_c3``: pixels first.. of the G = w.shape[0] sums of
+    KY = w.shape[1] rows, in the order of the SIMD sums."""
+    for p in range(first, src.shape[1] // 3):
+        d = 3 * (p >> 1) + (odd_at if p & 1 else 0)
+        for t in range(w.shape[0]):
+            for ch in range(3):
+                a = np.float32(0.0)
+                for k in range(w.shape[1]):
+                    a += w[t, k] * np.float32(src[s + t * STEP + k, 3 * p + ch])
+                eo[t, d + ch] = a
+
+
 def vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba only
     """For uint8 RGB rows ``src`` (H, 3 W): the G vertical sums of all W pixels, stored split
     into even and odd pixels, returning the factor they were stored times: 256.0 where every
@@ -583,33 +603,30 @@ def _vertical_even_odd_c3(src, s, w, eo, odd_at, KY, STEP, G):
     if _is_u8_rows(src) and _is_weight_rows(w) and _is_weight_rows(eo):
         halving = HAS_AVX2 and KY.literal_value == 8 and STEP.literal_value == 2
         h256 = np.array(HALF_KEYS_256, np.float32)
+        hg = np.tile(h256, (G.literal_value, 1))  # the tail's weights, times 256
 
-        def simd(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
-            npx = src.shape[1] // 3
-            keys = halving
+        def floats(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
+            nb = src.shape[1] // 3 // 8
+            vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
+            _vsum_tail_c3(src, s, w, eo, odd_at, STEP, 8 * nb)
+            return np.float32(1.0)
+
+        def keys_or_floats(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
+            keys = True
+            for t in range(G):
+                for k in range(KY):
+                    keys = keys and w[t, k] * np.float32(256.0) == h256[k]
             if keys:
-                for t in range(G):
-                    for k in range(KY):
-                        keys = keys and w[t, k] * np.float32(256.0) == h256[k]
-            if keys:
-                nb = npx // 16
+                nb = src.shape[1] // 3 // 16
                 vsum_eo_u8c3_keys2(src, s, eo, odd_at, nb, G)
-                first = 16 * nb
-            else:
-                nb = npx // 8
-                vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
-                first = 8 * nb
-            for p in range(first, npx):
-                d = 3 * (p >> 1) + (odd_at if p & 1 else 0)
-                for t in range(G):
-                    for ch in range(3):
-                        a = np.float32(0.0)
-                        for k in range(KY):
-                            x = np.float32(src[s + t * STEP + k, 3 * p + ch])
-                            a += (h256[k] if keys else w[t, k]) * x
-                        eo[t, d + ch] = a
-            return np.float32(256.0) if keys else np.float32(1.0)
-        return simd
+                _vsum_tail_c3(src, s, hg, eo, odd_at, STEP, 16 * nb)  # times 256, exact
+                return np.float32(256.0)
+            nb = src.shape[1] // 3 // 8
+            vsum_eo_u8c3(src, s, w, eo, odd_at, nb, KY, STEP, G)
+            _vsum_tail_c3(src, s, w, eo, odd_at, STEP, 8 * nb)
+            return np.float32(1.0)
+
+        return keys_or_floats if halving else floats
 
     def other(src, s, w, eo, odd_at, KY, STEP, G):  # pragma: no cover - numba
         return np.float32(0.0)

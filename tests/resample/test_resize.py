@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import cv2
 import numpy as np
 import pytest
@@ -258,3 +262,29 @@ def test_mixed_directions_match_the_separable_filter(H, W, h, w):
     # iteration) and enlarging rows while halving the width (the enlarging kernel with one
     # phase every 2 inputs).
     _check_float64_and_uint8(np.random.default_rng(6).random((H, W, 3)), h, w, uint8=False)
+
+
+_GENERIC = """
+import sys
+import numpy as np
+from camkit._kernels.simd import HAS_AVX2
+from camkit.resample import resize
+img = (np.random.default_rng(9).random((66, 100, 3)) * 255).round().astype(np.uint8)
+np.save(sys.argv[1], resize(img, width=50, height=33))
+print(HAS_AVX2)
+"""
+
+
+def test_halving_for_a_cpu_without_avx2(tmp_path):
+    # numba compiling for a generic CPU (NUMBA_CPU_NAME=generic, as for caches shared between
+    # machines) has no AVX2: the halving must leave out the integer sums' vpmaddwd there (LLVM
+    # cannot select it: the process would abort) and give the same image within rounding.
+    env = dict(os.environ, NUMBA_CPU_NAME="generic", NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = tmp_path / "out.npy"
+    run = subprocess.run([sys.executable, "-c", _GENERIC, str(out)], env=env, capture_output=True, text=True,
+                         timeout=900)
+    assert run.returncode == 0, run.stderr[-2000:]
+    assert run.stdout.strip().splitlines()[-1] == "False"
+    img = (np.random.default_rng(9).random((66, 100, 3)) * 255).round().astype(np.uint8)
+    here = resize(img, width=50, height=33)
+    assert np.abs(np.load(out).astype(int) - here).max() <= 1
