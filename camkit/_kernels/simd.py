@@ -411,6 +411,25 @@ _EVEN_C3 = [3 * p + ch for p in (0, 2, 4, 6) for ch in range(3)]
 _ODD_C3 = [3 * p + ch for p in (1, 3, 5, 7) for ch in range(3)]
 
 
+def _store_even_odd(builder: ir.IRBuilder, rows: list, base: ir.Value, erow: ir.Value, even: ir.Value,
+                    odd_at: ir.Value, ev_idx: list, od_idx: list) -> None:
+    """For each row t of sums, given as float vectors to take end to end (``rows[t]``), store
+    its elements ev_idx at base[t erow + even] and od_idx at base[t erow + odd_at + even]: a
+    block of the split sums' even and odd pixels."""
+    odd = builder.add(even, odd_at)
+    for t, vecs in enumerate(rows):
+        px = vecs[0]
+        for v in vecs[1:]:
+            n, m = px.type.count, v.type.count
+            wide = builder.shuffle_vector(v, v, _mask(list(range(m)) + [0] * (n - m))) if m < n else v
+            px = builder.shuffle_vector(px, wide, _mask(list(range(n)) + list(range(n, n + m))))
+        row = builder.mul(erow, ir.Constant(_I64, t))
+        for off, idx in ((even, ev_idx), (odd, od_idx)):
+            part = builder.shuffle_vector(px, px, _mask(idx))
+            q = builder.gep(base, [builder.add(row, off)])
+            builder.store(part, builder.bitcast(q, _V(_F32, len(idx)).as_pointer()), align=4)
+
+
 @intrinsic(prefer_literal=True)
 def vsum_eo_u8c3(typingctx, src, s, w, eo, odd_at, nb, KY, STEP, G):
     """For t < G and the first 8 nb pixels of the uint8 RGB rows ``src`` (H, 3 W): the vertical
@@ -457,18 +476,8 @@ def vsum_eo_u8c3(typingctx, src, s, w, eo, odd_at, nb, KY, STEP, G):
                         for j in range(3):
                             m = builder.fmul(xs[j], wv[t][kk], flags=flags)
                             acc[t][j] = m if acc[t][j] is None else builder.fadd(acc[t][j], m, flags=flags)
-            even = builder.mul(b, ir.Constant(_I64, 12))
-            odd_b = builder.add(even, odd)
-            for t in range(g):
-                v0, v1, v2 = acc[t]
-                both = builder.shuffle_vector(v0, v1, _mask(range(16)))
-                v2w = builder.shuffle_vector(v2, v2, _mask(list(range(8)) + [0] * 8))
-                px = builder.shuffle_vector(both, v2w, _mask(range(24)))
-                rb = builder.mul(erow, ir.Constant(_I64, t))
-                for o, idx in ((even, _EVEN_C3), (odd_b, _ODD_C3)):
-                    part = builder.shuffle_vector(px, px, _mask(idx))
-                    q = builder.gep(earr.data, [builder.add(rb, o)])
-                    builder.store(part, builder.bitcast(q, _V(_F32, 12).as_pointer()), align=4)
+            _store_even_odd(builder, acc, earr.data, erow, builder.mul(b, ir.Constant(_I64, 12)), odd,
+                            _EVEN_C3, _ODD_C3)
         return context.get_dummy_value()
 
     return types.void(src, s, w, eo, odd_at, nb, KY, STEP, G), codegen
@@ -553,20 +562,8 @@ def vsum_eo_u8c3_keys2(typingctx, src, s, eo, odd_at, nb, G):
                     for h in range(2):
                         pr = builder.shuffle_vector(A, S[t + 1], _mask([k for i in halves[h] for k in (i, 16 + i)]))
                         res[t].append(builder.sitofp(builder.call(pmadd, [pr, wpair]), _V(_F32, 8)))
-            even = builder.mul(b, ir.Constant(_I64, 24))
-            odd_b = builder.add(even, odd)
-            for t in range(g):
-                v = res[t]
-                a03 = builder.shuffle_vector(builder.shuffle_vector(v[0], v[1], _mask(range(16))),
-                                             builder.shuffle_vector(v[2], v[3], _mask(range(16))), _mask(range(32)))
-                a45 = builder.shuffle_vector(v[4], v[5], _mask(range(16)))
-                a45w = builder.shuffle_vector(a45, a45, _mask(list(range(16)) + [0] * 16))
-                px = builder.shuffle_vector(a03, a45w, _mask(range(48)))
-                rb = builder.mul(erow, ir.Constant(_I64, t))
-                for o, idx in ((even, ev_idx), (odd_b, od_idx)):
-                    part = builder.shuffle_vector(px, px, _mask(idx))
-                    q = builder.gep(earr.data, [builder.add(rb, o)])
-                    builder.store(part, builder.bitcast(q, _V(_F32, 24).as_pointer()), align=4)
+            _store_even_odd(builder, res, earr.data, erow, builder.mul(b, ir.Constant(_I64, 24)), odd,
+                            ev_idx, od_idx)
         return context.get_dummy_value()
 
     return types.void(src, s, eo, odd_at, nb, G), codegen
