@@ -71,9 +71,10 @@ def _horizontal_row(row, starts, weights, C, zero, is_int, hi, orow, c0, c1) -> 
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
-def _horizontal_row_eo(eo, odd_at, starts, weights, zero, is_int, hi, orow, c0, c1) -> None:  # pragma: no cover - numba
+def _horizontal_row_eo(eo, odd_at, starts, weights, zero, is_int, hi, orow, c0, c1, scale) -> None:  # pragma: no cover
     """``_horizontal_row`` for 3 channels from a row split into its even pixels (pixel 2q at
-    eo[3q]) and its odd ones (pixel 2q + 1 at eo[odd_at + 3q])."""
+    eo[3q]) and its odd ones (pixel 2q + 1 at eo[odd_at + 3q]), each sum times ``scale`` (a
+    power of two: 1/256 for rows stored times 256; exact, so the same bytes)."""
     T = type(zero)
     K = weights.shape[1]
     for c in range(c0, c1):
@@ -88,9 +89,9 @@ def _horizontal_row_eo(eo, odd_at, starts, weights, zero, is_int, hi, orow, c0, 
             a0 += w * eo[d]
             a1 += w * eo[d + 1]
             a2 += w * eo[d + 2]
-        orow[3 * c] = _store(a0, is_int, hi)
-        orow[3 * c + 1] = _store(a1, is_int, hi)
-        orow[3 * c + 2] = _store(a2, is_int, hi)
+        orow[3 * c] = _store(a0 * scale, is_int, hi)
+        orow[3 * c + 1] = _store(a1 * scale, is_int, hi)
+        orow[3 * c + 2] = _store(a2 * scale, is_int, hi)
 
 
 def _is_uint8(a) -> bool:  # pragma: no cover - numba only
@@ -127,9 +128,10 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
     image: 0.79 of the time of the two-row code (6.3 against 7.9 ms).
     With Keys' a = -0.5 weights (the default bicubic halving, away from the borders) and AVX2,
     those sums are exact integer sums (``vsum_eo_u8c3_keys2``: the weights factor as
-    [1, 3, 3, 1] * [-3, 0, 38, 0, -3] / 256), stored times 256; the horizontal weights are then
-    taken over 256. One process, 41 alternated calls: 0.83-0.87 of the time of the float sums
-    (5.0-5.5 against 5.9-6.3 ms), the same bytes on the 12 MP image.
+    [1, 3, 3, 1] * [-3, 0, 38, 0, -3] / 256), stored times 256; the horizontal weights (and
+    the border outputs' sums) are then taken over 256. One process, 41 alternated calls:
+    0.83-0.87 of the time of the float sums (5.0-5.5 against 5.9-6.3 ms), the same bytes on
+    the 12 MP image.
     Rows near the borders, whose input windows are not STEP apart, and other dtypes take the
     two-row and one-row loops and the split."""
     EO = int(C == 3 and STEP == 2 and KX > 0)
@@ -151,7 +153,6 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
         # for sums stored times 256 (the uint8 halving's exact integer sums): the same weights
         # over 256, a power of two, so the products and the bytes out are the same
         v256 = v * T(1.0 / 256.0)
-        wx256 = wx * (1.0 / 256.0)
         G = GROUP if EO and _is_uint8(src) else min(GROUP, 2)  # output rows per iteration
         Ho = out.shape[0]
         n_even = (L // 3 + 1) // 2
@@ -174,7 +175,6 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                 scale = vertical_even_odd_c3(src, s, w, eo, C * n_even, KY, STEP, GROUP)
             fused = scale > 0
             vt = v256 if scale == 256 else v
-            wxt = wx256 if scale == 256 else wx
             acc = np.empty((G, 0 if fused else L), type(zero))  # rows of sums, where not fused
             if fused:
                 pass  # the sums are in eo
@@ -234,8 +234,9 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
                         if KX % 2:
                             a += vt[KX - 1] * ea[i + 3 * (KX // 2)]
                         o[i] = _store(a, is_int, hi)
-                    _horizontal_row_eo(eot, C * n_even, sx, wxt, zero, is_int, hi, orow, 0, c0)
-                    _horizontal_row_eo(eot, C * n_even, sx, wxt, zero, is_int, hi, orow, c1, Wo)
+                    inv = T(1.0 / 256.0) if scale == 256 else T(1.0)
+                    _horizontal_row_eo(eot, C * n_even, sx, wx, zero, is_int, hi, orow, 0, c0, inv)
+                    _horizontal_row_eo(eot, C * n_even, sx, wx, zero, is_int, hi, orow, c1, Wo, inv)
                 elif KX > 0 and c0 < c1:
                     seg = acct[(stp * c0 + first) * C:]
                     for i in range(n):
