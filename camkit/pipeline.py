@@ -1,19 +1,112 @@
 """The calibration job shared by ``camkit calibrate`` and ``camkit demo``: images in; camera
-file, results file and report out."""
+file, results file and report out. The place where paths become arrays."""
 
 from __future__ import annotations
 
+import glob
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from camkit.calib.calibrate import CalibrationResult, calibrate_images
 from camkit.calib.targets import Checkerboard
-from camkit.errors import ParameterError
+from camkit.errors import ImageFileError, ParameterError
 from camkit.lens.base import CameraModel
 
-__all__ = ["CalibrationJob", "calibrate_files"]
+__all__ = ["CalibrationJob", "InputImages", "calibrate_files", "collect_images", "prepare_outputs"]
+
+
+@dataclass(frozen=True, slots=True)
+class InputImages:
+    """Image files gathered from the command line's arguments.
+
+    Attributes
+    ----------
+    paths : list of Path
+        The image files, in the order given (a folder's or a glob's files sorted by name).
+    skipped : list of (Path, str)
+        Files found in a folder that are not images (by suffix), with the reason.
+    """
+
+    paths: list[Path]
+    skipped: list[tuple[Path, str]] = field(default_factory=list)
+
+
+def collect_images(inputs: Sequence[str | os.PathLike]) -> InputImages:
+    """Image files from files, folders and glob patterns.
+
+    - a folder: its files whose name ends in one of :data:`camkit.io.IMAGE_SUFFIXES`, in any
+      case (``IMG_0001.JPG``), sorted by name; its other files are listed as skipped; not
+      recursive;
+    - a pattern with ``*``, ``?`` or ``[`` that is not an existing file: the files it matches
+      (sorted), the same suffix rule;
+    - a file: taken as given (its content decides its format).
+
+    Raises ParameterError when an input does not exist or nothing is found.
+    """
+    from camkit.io.images import is_image_name
+
+    paths: list[Path] = []
+    skipped: list[tuple[Path, str]] = []
+    for item in inputs:
+        text = os.fspath(item)
+        p = Path(text)
+        if p.is_dir():
+            found = sorted((q for q in p.iterdir() if q.is_file()), key=lambda q: q.name)
+            for q in found:
+                if is_image_name(q):
+                    paths.append(q)
+                elif not q.name.startswith("."):
+                    skipped.append((q, "not an image file name"))
+            if not any(is_image_name(q) for q in found):
+                raise ParameterError(f"IMAGES: the folder {p} holds no image files (JPEG, PNG, TIFF, BMP, WebP, "
+                                     "PGM/PPM or camera RAW)")
+        elif p.exists():
+            paths.append(p)
+        elif any(ch in text for ch in "*?["):
+            matches = sorted(Path(m) for m in glob.glob(text))
+            files = [m for m in matches if m.is_file()]
+            if not files:
+                raise ParameterError(f"IMAGES: the pattern {text!r} matches no files")
+            for q in files:
+                (paths.append(q) if is_image_name(q) else skipped.append((q, "not an image file name")))
+        else:
+            raise ParameterError(f"IMAGES: {text} does not exist")
+    if not paths:
+        raise ParameterError("IMAGES: no image files among the inputs")
+    return InputImages(paths, skipped)
+
+
+def prepare_outputs(outputs: dict[str, str | os.PathLike | None], inputs: Sequence[Path] = ()) -> dict[str, Path]:
+    """Check and create the folders of the files a job will write, before any work starts.
+
+    ``outputs`` maps an option name (for messages, e.g. ``"-o"``) to a file path or None.
+    Missing parent folders are created; an output that is an existing folder, one of the
+    inputs, or whose folder cannot be created or written is refused with a ParameterError
+    naming the option. Returns the paths given (None dropped).
+    """
+    ins = {p.resolve() for p in inputs}
+    out: dict[str, Path] = {}
+    for name, target in outputs.items():
+        if target is None:
+            continue
+        t = Path(target)
+        if t.resolve() in ins:
+            raise ParameterError(f"{name}: {t} is one of the input images; camkit never overwrites an input")
+        if t.is_dir():
+            raise ParameterError(f"{name}: {t} is a folder; expected a file name")
+        parent = t.parent
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except FileExistsError:
+            raise ParameterError(f"{name}: cannot create the folder {parent}: a file is in the way") from None
+        except OSError as exc:
+            raise ParameterError(f"{name}: cannot create the folder {parent} ({exc.strerror or exc})") from None
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise ParameterError(f"{name}: cannot write in the folder {parent} (permission denied)")
+        out[name] = t
+    return out
 
 
 @dataclass(frozen=True, slots=True)
@@ -23,28 +116,37 @@ class CalibrationJob:
     camera_file: Path | None
     results_file: Path | None
     report_file: Path | None
+    image_info: list = field(default_factory=list)
 
 
 def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, model: str = "brown-conrady",
+                    fix: tuple[str, ...] | None = None, free: tuple[str, ...] | None = None,
                     camera_file: str | os.PathLike | None = None, results_file: str | os.PathLike | None = None,
                     report_file: str | os.PathLike | None = None, truth: CameraModel | None = None,
                     title: str = "Camera calibration",
                     progress: Callable[[str, int, int], None] | None = None) -> CalibrationJob:
     """Detect, calibrate and write what was asked for (each file atomically).
 
-    ``progress(stage, done, total)`` is called during detection (stage ``"detect"``), then
-    with 0 and 1 of 1 around the solve (``"calibrate"``) and the report (``"report"``). No
-    output may be one of the inputs."""
+    Output folders are created (or refused) before any image is read. ``progress(stage, done,
+    total)`` is called during detection (stage ``"detect"``), then with 0 and 1 of 1 around the
+    solve (``"calibrate"``) and the report (``"report"``). No output may be one of the inputs.
+    The images' EXIF (camera, lens, focal length, orientation) goes into the results file and
+    the report."""
     from camkit.io.camera_files import save_camera
+    from camkit.io.images import read_image_info
     from camkit.io.results import write_results
     from camkit.report import write_report
 
     files = [Path(p) for p in paths]
-    inputs = {f.resolve() for f in files}
-    for name, out in (("camera_file", camera_file), ("results_file", results_file), ("report_file", report_file)):
-        if out is not None and Path(out).resolve() in inputs:
-            raise ParameterError(f"{name}: {out} is one of the input images; camkit never overwrites an input")
+    outs = prepare_outputs({"camera_file": camera_file, "results_file": results_file, "report_file": report_file},
+                           files)
     names = [f.name if len({g.name for g in files}) == len(files) else str(f) for f in files]
+    info = []
+    for f in files:
+        try:
+            info.append(read_image_info(f))
+        except ImageFileError:
+            info.append(None)  # read_image below names the problem
 
     def det_progress(done: int, total: int) -> None:
         if progress is not None:
@@ -52,19 +154,20 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
             if done == total:
                 progress("calibrate", 0, 1)  # the solve starts when detection ends
 
-    result = calibrate_images(files, board, model=model, progress=det_progress)
+    result = calibrate_images(files, board, model=model, fix=fix, free=free, progress=det_progress)
     if progress is not None:
         progress("calibrate", 1, 1)
     cam_path = res_path = rep_path = None
-    if camera_file is not None:
-        cam_path = save_camera(camera_file, result.model, rms_px=result.rms_px,
+    if "camera_file" in outs:
+        cam_path = save_camera(outs["camera_file"], result.model, rms_px=result.rms_px,
                                stddev=dict(result.stddev))
-    if results_file is not None:
-        res_path = write_results(results_file, result, names)
-    if report_file is not None:
+    if "results_file" in outs:
+        res_path = write_results(outs["results_file"], result, names, image_info=info)
+    if "report_file" in outs:
         if progress is not None:
             progress("report", 0, 1)
-        rep_path = write_report(report_file, result, images=files, image_names=names, truth=truth, title=title)
+        rep_path = write_report(outs["report_file"], result, images=files, image_names=names, truth=truth,
+                                title=title, image_info=info)
         if progress is not None:
             progress("report", 1, 1)
-    return CalibrationJob(result, names, cam_path, res_path, rep_path)
+    return CalibrationJob(result, names, cam_path, res_path, rep_path, info)

@@ -21,18 +21,49 @@ from camkit.geometry.rotation import matrix_from_rvec
 from camkit.io.images import read_image
 from camkit.lens.base import CameraModel, get_model
 
-__all__ = ["DEFAULT_FIX", "CalibrationResult", "calibrate", "calibrate_images", "default_fix"]
+__all__ = ["DEFAULT_FIX", "CalibrationResult", "calibrate", "calibrate_images", "default_fix", "held_parameters"]
 
-#: Held at their start values by default for Brown-Conrady: skew, and the terms beyond k1, k2,
-#: p1, p2, k3 (OpenCV's default 5-coefficient model).
+#: Held at their start values by default for Brown-Conrady (``BrownConrady.default_fixed``):
+#: skew, and the terms beyond k1, k2, p1, p2, k3 (OpenCV's default 5-coefficient model).
 DEFAULT_FIX = ("skew", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
 
 
 def default_fix(model: str) -> tuple[str, ...]:
-    """The parameters ``calibrate`` holds when ``fix`` is not given: :data:`DEFAULT_FIX` for
-    Brown-Conrady, skew alone for the others (Kannala-Brandt fits k1..k4, as OpenCV's fisheye
-    module does)."""
-    return DEFAULT_FIX if get_model(model).name == "brown-conrady" else ("skew",)
+    """The parameters ``calibrate`` holds unless freed: the model's ``default_fixed``
+    (:data:`DEFAULT_FIX` for Brown-Conrady, skew alone for the others; Kannala-Brandt fits
+    k1..k4, as OpenCV's fisheye module does)."""
+    return tuple(get_model(model).default_fixed)
+
+
+def held_parameters(model: str, fix: Any = (), free: Any = ()) -> tuple[str, ...]:
+    """The parameters calibration holds: the model's defaults, plus ``fix``, less ``free``.
+
+    ``fix`` and ``free`` take parameter names or group names of the model (``"k3"``,
+    ``"tangential"``); a name the model does not have is an error, whatever the model (a
+    pinhole has no ``k6``). Returns the held names in the model's parameter order.
+
+    Examples
+    --------
+    >>> held_parameters("brown-conrady", fix=("k3",), free=("k4",))
+    ('skew', 'k3', 'k5', 'k6', 's1', 's2', 's3', 's4')
+    """
+    cls = get_model(model)
+    sets = []
+    for arg, label in ((fix, "fix"), (free, "free")):
+        if arg is None:
+            arg = ()
+        if isinstance(arg, str) or not all(isinstance(f, str) for f in arg):
+            raise ParameterError(f"{label}: expected a tuple of parameter or group names, got {arg!r}")
+        unknown = [f for f in arg if f not in cls.param_names and f not in cls.param_groups]
+        if unknown:
+            raise ParameterError(f"{label}: {unknown} are not parameters of the {cls.name} model; expected names "
+                                 f"from {cls.param_names} or groups {tuple(cls.param_groups)}")
+        sets.append({cls.param_names[i] for i in cls.param_indices(tuple(arg))} if arg else set())
+    both = sets[0] & sets[1]
+    if both:
+        raise ParameterError(f"fix, free: {sorted(both)} named in both")
+    held = (set(cls.default_fixed) | sets[0]) - sets[1]
+    return tuple(n for n in cls.param_names if n in held)
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -45,10 +76,13 @@ class CalibrationResult:
     poses : list of Pose
         ``cam_from_target`` per view.
     rms_px : float
-        Root mean square of all residual vectors' components (as OpenCV reports it).
+        The reprojection RMS as OpenCV's ``calibrateCamera`` returns it:
+        ``sqrt(mean over corners of (dx^2 + dy^2))``, pixels; the same definition as
+        ``view_rms_px``.
     std_px : (float, float)
         Standard deviation of the residuals along x and y (as Bouguet's toolbox reports it).
     view_rms_px : ndarray, (n_views,)
+        ``sqrt(mean(dx^2 + dy^2))`` over each view's corners in use.
     residuals : list of ndarray
         Per view, (N_i, 2) pixels ``projected - observed``; NaN for rejected corners.
     free_params : tuple of str
@@ -121,7 +155,8 @@ def _as_views(object_points: Any, image_points: Any) -> tuple[list[np.ndarray], 
 
 
 def calibrate(object_points: Any, image_points: Any, *, width: int, height: int, model: str = "brown-conrady",
-              fix: tuple[str, ...] | None = None, robust_loss: str | None = None, robust_scale_px: float = 1.0,
+              fix: tuple[str, ...] | None = None, free: tuple[str, ...] | None = None,
+              robust_loss: str | None = None, robust_scale_px: float = 1.0,
               reject_sigma: float | None = 5.0, max_iterations: int = 200) -> CalibrationResult:
     """Calibrate a camera from views of a planar target.
 
@@ -131,9 +166,10 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     sec. 3.2: its initialisation), f chosen as the one under which every view's corners lie
     on a plane. Then Levenberg-Marquardt over the free
     model parameters and every pose (rotations updated multiplicatively), with the lens
-    models' analytic Jacobians. Parameters named in ``fix`` (names or groups such as
-    ``"tangential"``) keep their start value (0 for distortion); ``None`` means
-    :func:`default_fix` of the model. ``robust_loss`` ("huber" or
+    models' analytic Jacobians. The model's default held parameters (:func:`default_fix`), plus
+    those named in ``fix``, less those named in ``free`` (names or groups such as
+    ``"tangential"``; see :func:`held_parameters`), keep their start value (0 for distortion).
+    ``robust_loss`` ("huber" or
     "cauchy", scale ``robust_scale_px``) reweights residuals; corners whose residual exceeds
     ``reject_sigma`` robust standard deviations are rejected with the reason recorded, and the
     fit repeated once.
@@ -159,19 +195,11 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     w = as_positive_int(width, "width")
     h = as_positive_int(height, "height")
     cls = get_model(model)
-    if fix is None:
-        fix = default_fix(model)
-    if isinstance(fix, str) or not all(isinstance(f, str) for f in fix):
-        raise ParameterError(f"fix: expected a tuple of parameter or group names, got {fix!r}")
-    unknown = [f for f in fix if f not in cls.param_names and f not in cls.param_groups
-               and f not in DEFAULT_FIX]
-    if unknown:
-        raise ParameterError(f"fix: {unknown} are not parameters of {cls.name!r}; expected names from "
-                             f"{cls.param_names} or groups {tuple(cls.param_groups)}")
+    held = held_parameters(model, fix, free)
     if robust_loss is not None:
         check_choice(robust_loss, ("huber", "cauchy"), "robust_loss")
     scale = as_positive_float(robust_scale_px, "robust_scale_px")
-    fixed = set(cls.param_indices(tuple(f for f in fix if f in cls.param_names or f in cls.param_groups)))
+    fixed = set(cls.param_indices(held)) if held else set()
     free = [i for i in range(len(cls.param_names)) if i not in fixed]
     # Closed-form start (pinhole part), from views with >= 4 seen points.
     keep, rejected_views = [], []
@@ -446,7 +474,7 @@ def _result(cam, objs, imgs, poses, views, mask, free, info, rejected, rejected_
     cov = info["cov_unit"] * sigma2
     names = tuple(cam.param_names[i] for i in free)
     return CalibrationResult(
-        model=cam, poses=[poses[i] for i in views], rms_px=float(np.sqrt((R**2).mean())),
+        model=cam, poses=[poses[i] for i in views], rms_px=float(np.sqrt((R**2).sum(axis=1).mean())),
         std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms[views],
         residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
         stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,
@@ -502,8 +530,8 @@ def _equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: in
 
 
 def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", fix: tuple[str, ...] | None = None,
-                     robust_loss: str | None = None, reject_sigma: float | None = 5.0,
-                     progress: Any = None) -> CalibrationResult:
+                     free: tuple[str, ...] | None = None, robust_loss: str | None = None,
+                     reject_sigma: float | None = 5.0, progress: Any = None) -> CalibrationResult:
     """Detect the board in each image and calibrate from the corners found.
 
     Parameters
@@ -512,7 +540,7 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
         Images as arrays (grey, RGB, 8 or 16 bit) or files :func:`camkit.io.read_image` reads;
         all of the same size.
     board : Checkerboard
-    model, fix, robust_loss, reject_sigma
+    model, fix, free, robust_loss, reject_sigma
         As for :func:`calibrate`.
     progress : callable(done, total) or None
         Called after each image is detected.
@@ -550,7 +578,7 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
                               "that the whole board is in the photos")
     obj = board.object_points()
     result = calibrate([obj] * len(detections), [d.corners for d in detections], width=size[1], height=size[0],
-                       model=model, fix=fix, robust_loss=robust_loss, reject_sigma=reject_sigma)
+                       model=model, fix=fix, free=free, robust_loss=robust_loss, reject_sigma=reject_sigma)
     reasons = {i: r for i, r in result.rejected_views}
     rejected_views = [(i, reasons[i] if d.found else f"board not found: {d.message}")
                       for i, d in enumerate(detections) if i in reasons]

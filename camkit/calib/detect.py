@@ -210,15 +210,78 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
        black, as :class:`Checkerboard` defines it), when the board's colours distinguish the
        two ends; otherwise corner (0, 0) is the one nearer the image's top-left.
 
+    5. Scale: where the board is not found, steps 1-4 run again on the image halved (2x2 means)
+       as long as its smaller side keeps 600 px, and the corners found there are refined on the
+       full image with the smoothing and window scaled by the factor.
+
     Corners not seen (fingers over the edge squares) are NaN rows. Grey, RGB(A) and 16-bit
     images are accepted. An image without a board gives ``found=False`` quickly.
     """
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
+    grey = _to_grey(image)
+    det = _detect(grey, board)
+    level = grey
+    factor = 1
+    while not det.found and min(level.shape) >= 2 * _MIN_PYRAMID_SIDE:
+        # Large squares (a 300-dpi scan, a 24 MP photo of a near board): the fixed smoothing and
+        # profile circle see edges, not corners. Look again at half the resolution, then refine
+        # at full resolution.
+        level = _half(level)
+        factor *= 2
+        coarse = _detect(level, board)
+        if coarse.found:
+            return _refine_full(grey, coarse, factor, board)
+    return det
+
+
+#: The pyramid stops before an image side falls under this many pixels.
+_MIN_PYRAMID_SIDE = 600
+
+
+def _half(img: np.ndarray) -> np.ndarray:
+    """The 2x2 mean: pixel (x, y) of the half image covers full-resolution pixels 2x..2x+1."""
+    h, w = img.shape[0] // 2 * 2, img.shape[1] // 2 * 2
+    a = img[:h, :w]
+    return np.ascontiguousarray(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
+
+
+def _refine_full(grey: np.ndarray, coarse: CornerDetection, factor: int, board: Checkerboard) -> CornerDetection:
+    """Corners found at 1/factor resolution, refined on the full image: positions mapped back
+    (x_full = (x + 0.5) * factor - 0.5), then the saddle fit with the smoothing and window scaled
+    by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN)."""
+    cols, rows = board.inner_cols, board.inner_rows
+    c = (coarse.corners + 0.5) * factor - 0.5
+    seen = np.isfinite(c).all(axis=1)
+    grid = c.reshape(rows, cols, 2)
+    steps = np.concatenate([np.hypot(*np.diff(grid, axis=1).reshape(-1, 2).T),
+                            np.hypot(*np.diff(grid, axis=0).reshape(-1, 2).T)])
+    spacing = float(np.nanmedian(steps)) if np.isfinite(steps).any() else 11.0 * factor
+    r = int(np.clip(round(spacing / 11.0), 2, 5 * factor))
+    s = np.empty_like(grey)
+    _kd.gaussian_blur(grey, _SIGMA * factor, s)
+    refined, sig = _saddle_fit(s, c[seen], r)
+    out = np.full_like(c, np.nan)
+    sigma = np.full(len(c), np.nan)
+    moved = np.hypot(*(refined - c[seen]).T)
+    keep = np.flatnonzero(seen)[np.isfinite(moved) & (moved <= factor)]
+    ok = np.isfinite(moved) & (moved <= factor)
+    out[keep] = refined[ok]
+    sigma[keep] = sig[ok]
+    if _bent_fraction(out.reshape(rows, cols, 2)) > 0.1:
+        return CornerDetection(False, np.full_like(c, np.nan), np.full(len(c), np.nan), r,
+                               f"not found: the lattice found at 1/{factor} resolution is inconsistent at full "
+                               "resolution")
+    found = int(np.isfinite(out).all(axis=1).sum())
+    return CornerDetection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
+                           f"refined at full resolution (window {r} px)")
+
+
+def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
+    """Steps 1-4 of :func:`detect_corners` on one resolution."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
     empty = np.full((n_corners, 2), np.nan)
-    grey = _to_grey(image)
 
     def fail(msg: str, window: int = 0) -> CornerDetection:
         return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg)
@@ -330,6 +393,14 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
         # "not found" rather than return corners with wrong indices.
         return fail(f"not found: the corner lattice is inconsistent ({bent:.0%} of rows and columns bend by more "
                     "than half a square; a lens this strong may need the board nearer the image centre)", r)
+    seen = out[np.isfinite(out).all(axis=1)]
+    if len(seen) > 1:
+        d = np.hypot(*(seen[:, None, :] - seen[None, :, :]).transpose(2, 0, 1))
+        np.fill_diagonal(d, np.inf)
+        if d.min() < 0.3 * spacing:
+            # Two labels on one corner: the lattice was walked over something else (text,
+            # clutter). Never return it.
+            return fail("not found: the corner lattice is inconsistent (two labels on one corner)", r)
     found = int(np.isfinite(out).all(axis=1).sum())
     return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)")
 

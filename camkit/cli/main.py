@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 from typing import ClassVar
@@ -90,14 +91,14 @@ def _view_table(job):
             k = pos[i]
             table.add_row(name, n, f"{r.view_rms_px[k]:.3f}", "{:+.1f} / {:+.1f} / {:+.1f}".format(*ypr[k]))
         else:
-            table.add_row(name, n, "[red]not used[/red]", reasons.get(i, ""))
+            table.add_row(name, n, "[red]not used[/red]", reasons.get(i, "board not found"))
     return table
 
 
 def _summary(console, job) -> None:
     r = job.result
-    console.print(f"{len(r.view_indices)} of {len(job.image_names)} views used; RMS {r.rms_px:.3f} px; "
-                  f"residual std {r.std_px[0]:.3f} / {r.std_px[1]:.3f} px (x / y); "
+    console.print(f"{len(r.view_indices)} of {len(job.image_names)} views used; RMS {r.rms_px:.3f} px per corner "
+                  f"(as OpenCV's); residual std {r.std_px[0]:.3f} / {r.std_px[1]:.3f} px (x / y); "
                   f"{len(r.rejected)} corners rejected as outliers; {r.message}")
 
 
@@ -126,19 +127,29 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from camkit.calib import Checkerboard
-    from camkit.pipeline import calibrate_files
+    from camkit.calib import Checkerboard, held_parameters
+    from camkit.io.results import orientation_note
+    from camkit.pipeline import calibrate_files, collect_images, prepare_outputs
 
     console = _console()
     board = Checkerboard(*args.board, args.square)
-    console.print(f"camkit calibrate: {len(args.images)} images, board {args.board[0]}x{args.board[1]} inner "
+    fix, free = tuple(args.fix or ()), tuple(args.free or ())
+    held_parameters(args.model, fix, free)  # a misspelt name fails here, before any work
+    inputs = collect_images(args.images)
+    prepare_outputs({"-o": args.output, "--json": args.json, "--report": args.report}, inputs.paths)
+    console.print(f"camkit calibrate: {len(inputs.paths)} images, board {args.board[0]}x{args.board[1]} inner "
                   f"corners, {args.square * 1000:g} mm squares, model {args.model}")
+    for path, why in inputs.skipped:
+        console.print(f"skipped {path}: {why}")
     with _Progress(console) as progress:
-        job = calibrate_files(args.images, board, model=args.model, camera_file=args.output,
+        job = calibrate_files(inputs.paths, board, model=args.model, fix=fix, free=free, camera_file=args.output,
                               results_file=args.json, report_file=args.report, progress=progress)
     console.print(_view_table(job))
     console.print(_param_table(job.result))
     _summary(console, job)
+    note = orientation_note(job.image_info)
+    if note:
+        console.print(f"[yellow]note: {note}[/yellow]")
     for label, path in (("camera", job.camera_file), ("results", job.results_file), ("report", job.report_file)):
         if path is not None:
             console.print(f"{label + ':':<9}{path}")
@@ -147,13 +158,16 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 def _cmd_board(args: argparse.Namespace) -> int:
     from camkit.calib import Checkerboard
-    from camkit.calib.board_file import write_board
+    from camkit.calib.board_file import board_layout, parse_paper, write_board
+    from camkit.pipeline import prepare_outputs
 
     board = Checkerboard(*args.inner, args.square, margin=args.margin)
-    path = write_board(args.output, board, dpi=args.dpi)
-    u0, v0, u1, v1 = board.extent()
+    paper = parse_paper(args.paper) if args.paper else None
+    layout = board_layout(board, paper)  # a board that does not fit is refused here
+    prepare_outputs({"-o": args.output})
+    path = write_board(args.output, board, paper=paper, dpi=args.dpi)
     print(f"wrote {path}: {args.inner[0]}x{args.inner[1]} inner corners ({args.inner[0] + 1}x{args.inner[1] + 1} "
-          f"squares of {args.square * 1000:g} mm), sheet {(u1 - u0) * 1000:g} x {(v1 - v0) * 1000:g} mm. "
+          f"squares of {args.square * 1000:g} mm), page {layout.page_w_mm:g} x {layout.page_h_mm:g} mm. "
           "Print at 100 % (actual size) and measure a square.")
     return 0
 
@@ -161,23 +175,30 @@ def _cmd_board(args: argparse.Namespace) -> int:
 def _cmd_undistort(args: argparse.Namespace) -> int:
     from pathlib import Path
 
-    from camkit.io import load_camera, read_image, write_png
+    from camkit.io import read_camera, read_image, write_png
+    from camkit.pipeline import collect_images
     from camkit.resample import optimal_pinhole, undistort_image
 
     console = _console()
-    model = load_camera(args.camera)
+    model = read_camera(args.camera)
+    images = collect_images(args.images).paths
     out = Path(args.output)
-    out.mkdir(parents=True, exist_ok=True)
-    inputs = {Path(p).resolve() for p in args.images}
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"-o: {out} is a file; expected a folder for the undistorted images")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"-o: cannot create the folder {out} ({exc.strerror or exc})") from None
+    inputs = {p.resolve() for p in images}
     new = optimal_pinhole(model, args.alpha)
-    targets = [out / (Path(p).stem + ".png") for p in args.images]
+    targets = [out / (p.stem + ".png") for p in images]
     if len({t.resolve() for t in targets}) != len(targets):
         raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
     for t in targets:
         if t.resolve() in inputs:
             raise ParameterError(f"-o: {t} is one of the input images; camkit never overwrites an input")
     with _Progress(console) as progress:
-        for k, (src, dst) in enumerate(zip(args.images, targets, strict=True)):
+        for k, (src, dst) in enumerate(zip(images, targets, strict=True)):
             img = read_image(src)
             if img.shape[1] != model.width or img.shape[0] != model.height:
                 raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
@@ -231,19 +252,32 @@ def _board_size(text: str) -> tuple[int, int]:
     return cols, rows
 
 
+#: Units a length may carry on the command line, in metres.
+_UNITS = (("mm", 1e-3), ("cm", 1e-2), ("in", 0.0254), ("m", 1.0))
+
+
 def _length_m(text: str) -> float:
-    """'30mm', '3cm', '0.03m' or '0.03' (metres)."""
-    t = text.strip().lower()
-    for unit, scale in (("mm", 1e-3), ("cm", 1e-2), ("m", 1.0)):
+    """A length with its unit: '30mm', '3cm', '0.03m' or '1.5in' (returned in metres). A bare
+    number is refused: '30' could be 30 mm or 30 m."""
+    t = text.strip().lower().replace(" ", "")
+    for unit, scale in _UNITS:
         if t.endswith(unit):
             t, factor = t[: -len(unit)], scale
             break
     else:
-        factor = 1.0
+        try:
+            bare = float(t)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a length with a unit (mm, cm, m or in) such as 30mm, "
+                                             f"got {text!r}") from None
+        guess = f"{bare:g}mm" if bare >= 1 else f"{bare:g}m"
+        raise argparse.ArgumentTypeError(f"a length needs a unit (mm, cm, m or in): did you mean {guess}? "
+                                         f"got {text!r}")
     try:
         value = float(t) * factor
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a length such as 30mm or 0.03, got {text!r}") from None
+        raise argparse.ArgumentTypeError(f"expected a length with a unit (mm, cm, m or in) such as 30mm, "
+                                         f"got {text!r}") from None
     if not value > 0:
         raise argparse.ArgumentTypeError(f"expected a positive length, got {text!r}")
     return value
@@ -295,6 +329,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
                   f"({args.square * 1000:g} mm squares) through the built-in {camera.name} camera, seed {args.seed}")
     with _Progress(console) as progress:
         out = simulate_dataset(args.output, camera, board, args.views, seed=args.seed, effects=effects,
+                               bit_depth=args.bit_depth,
                                progress=lambda done, total: progress("render", done, total))
     console.print(f"wrote {args.views} images and truth.json to {out}")
     return 0
@@ -311,11 +346,17 @@ def build_parser() -> argparse.ArgumentParser:
     demo.set_defaults(func=_cmd_demo)
 
     cal = sub.add_parser("calibrate", help="calibrate a camera from photos of a checkerboard")
-    cal.add_argument("images", nargs="+", metavar="IMAGES", help="PNG, TIFF or PGM/PPM files")
+    cal.add_argument("images", nargs="+", metavar="IMAGES",
+                     help="image files, folders or glob patterns (JPEG, PNG, TIFF, BMP, WebP, PGM/PPM, camera RAW)")
     cal.add_argument("--board", type=_board_size, required=True, help="inner corners COLSxROWS, e.g. 9x6")
     cal.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
-    cal.add_argument("--model", default="brown-conrady", choices=("pinhole", "brown-conrady", "kannala-brandt"),
+    cal.add_argument("--model", default="brown-conrady", choices=_model_names(),
                      help="lens model (kannala-brandt for fisheye lenses)")
+    cal.add_argument("--fix", action="append", metavar="NAME",
+                     help="hold this parameter or group at its start value, besides the model's defaults "
+                          "(repeatable; e.g. --fix k3 --fix tangential)")
+    cal.add_argument("--free", action="append", metavar="NAME",
+                     help="estimate a parameter the model holds by default (repeatable; e.g. --free skew)")
     cal.add_argument("-o", "--output", default="camera.json", help="camera file to write (default camera.json)")
     cal.add_argument("--json", metavar="RESULTS", help="also write the results (residuals, sigmas, views) here")
     cal.add_argument("--report", metavar="HTML", help="also write an HTML report here")
@@ -326,11 +367,14 @@ def build_parser() -> argparse.ArgumentParser:
     brd.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
     brd.add_argument("--margin", type=_length_m, help="white margin (default one square)")
     brd.add_argument("--dpi", type=int, default=300, help="pixels per inch for .png (default 300)")
+    brd.add_argument("--paper", help="centre the board on A4, A3, letter or WxHmm paper (default: the board's own "
+                                     "sheet)")
     brd.add_argument("-o", "--output", required=True, help="board.pdf, board.svg or board.png")
     brd.set_defaults(func=_cmd_board)
 
     und = sub.add_parser("undistort", help="remove lens distortion from images")
-    und.add_argument("camera", metavar="CAMERA.json", help="a camera file from camkit calibrate")
+    und.add_argument("camera", metavar="CAMERA",
+                     help="a camera file: camkit JSON, OpenCV/ROS YAML, Kalibr camchain or COLMAP cameras.txt")
     und.add_argument("images", nargs="+", metavar="IMAGES")
     und.add_argument("-o", "--output", required=True, help="output folder (inputs are never overwritten)")
     und.add_argument("--alpha", type=float, default=0.0,
@@ -359,7 +403,9 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--views", type=int, default=15, help="number of views (default 15)")
     sim.add_argument("--board", type=_board_size, default=(9, 6), help="inner corners COLSxROWS (default 9x6)")
     sim.add_argument("--square", type=_length_m, default=0.03, help="square side, e.g. 30mm (default 0.03 m)")
-    sim.add_argument("--model", default="brown-conrady", choices=("pinhole", "brown-conrady", "kannala-brandt"))
+    sim.add_argument("--model", default="brown-conrady", choices=_model_names())
+    sim.add_argument("--bit-depth", type=int, default=8, choices=(8, 16),
+                     help="bits per sample of the files: 8 (default) or 16 (the sensor's full range, white at 65535)")
     sim.add_argument("--seed", type=int, default=0, help="random seed: the same seed gives the same files")
     sim.add_argument("-o", "--output", required=True, help="output folder")
     sim.add_argument("--noise", action="store_true", help="expose and read out through an EMVA 1288 sensor")
@@ -372,7 +418,45 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--motion", type=float, metavar="M_PER_S", help="camera speed along x during a 10 ms exposure")
     sim.add_argument("--chromatic", action="store_true", help="lateral chromatic aberration")
     sim.set_defaults(func=_cmd_simulate)
+
+    exp_ = sub.add_parser("export", help="write a camera file in another format")
+    exp_.add_argument("camera", metavar="CAMERA",
+                      help="a camera file: camkit JSON, OpenCV/ROS YAML, Kalibr camchain or COLMAP cameras.txt")
+    exp_.add_argument("--to", required=True, choices=_export_formats(), help="the format to write")
+    exp_.add_argument("-o", "--output", help="file to write (default: print to the terminal)")
+    exp_.set_defaults(func=_cmd_export)
     return parser
+
+
+def _model_names() -> tuple[str, ...]:
+    from camkit.lens.base import MODELS
+
+    return tuple(sorted(MODELS))
+
+
+def _export_formats() -> tuple[str, ...]:
+    from camkit.io.camera_files import EXPORT_FORMATS
+
+    return EXPORT_FORMATS
+
+
+def _cmd_export(args: argparse.Namespace) -> int:
+    import tempfile
+    from pathlib import Path
+
+    from camkit.io.camera_files import export_camera, read_camera
+    from camkit.pipeline import prepare_outputs
+
+    model = read_camera(args.camera)
+    if args.output:
+        prepare_outputs({"-o": args.output}, [Path(args.camera)])
+        path = export_camera(model, args.output, args.to)
+        print(f"wrote {path}: {model.name} camera {model.width}x{model.height} as {args.to}")
+        return 0
+    with tempfile.TemporaryDirectory() as tmp:
+        path = export_camera(model, Path(tmp) / "camera", args.to)
+        sys.stdout.write(path.read_text())
+    return 0
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -385,6 +469,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except CamkitError as exc:
         print(f"camkit {args.command}: error: {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:  # a disk full, a folder that vanished, a permission taken away mid-run
+        where = f"{exc.filename}: " if getattr(exc, "filename", None) else ""
+        print(f"camkit {args.command}: error: {where}{exc.strerror or exc}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        # Files are written to a temporary name and renamed when complete: nothing half-written
+        # is left behind.
+        print(f"camkit {args.command}: interrupted; no partial file was written", file=sys.stderr)
+        return 130
+    except Exception as exc:  # a bug: one line, and the traceback only on request
+        if os.environ.get("CAMKIT_DEBUG"):
+            raise
+        print(f"camkit {args.command}: internal error: {type(exc).__name__}: {exc} (please report it; set "
+              "CAMKIT_DEBUG=1 for the traceback)", file=sys.stderr)
         return 1
 
 

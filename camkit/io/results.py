@@ -15,7 +15,7 @@ from camkit.errors import ParameterError
 from camkit.io._atomic import write_atomic
 from camkit.io.camera_files import _camera_dict
 
-__all__ = ["RESULTS_FORMAT_VERSION", "results_to_dict", "write_results"]
+__all__ = ["RESULTS_FORMAT_VERSION", "camera_info", "orientation_note", "results_to_dict", "write_results"]
 
 RESULTS_FORMAT_VERSION = 1
 
@@ -25,7 +25,38 @@ def _num(x: float) -> float | None:
     return None if not math.isfinite(x) else float(x)
 
 
-def results_to_dict(result: Any, image_names: Sequence[str] | None = None) -> dict[str, Any]:
+def camera_info(image_info: Sequence[Any] | None) -> dict[str, Any]:
+    """The camera and lens the images' EXIF names (make, model, lens, focal length in mm and
+    its 35 mm equivalent), from the first image that has each field; and the images whose EXIF
+    orientation is not 1 (a viewer shows them turned; camkit works on the stored grid)."""
+    out: dict[str, Any] = {}
+    turned = []
+    for info in image_info or ():
+        if info is None:
+            continue
+        for k, v in info.exif_dict().items():
+            if k != "orientation":
+                out.setdefault(k, v)
+        if info.orientation != 1:
+            turned.append({"image": info.path.name, "orientation": int(info.orientation)})
+    if turned:
+        out["rotated_images"] = turned
+    return out
+
+
+def orientation_note(image_info: Sequence[Any] | None) -> str | None:
+    """One sentence for the CLI and the report when some images carry an EXIF orientation other
+    than 1, else None."""
+    turned = [i for i in image_info or () if i is not None and i.orientation != 1]
+    if not turned:
+        return None
+    names = ", ".join(i.path.name for i in turned[:3]) + (" ..." if len(turned) > 3 else "")
+    return (f"{len(turned)} image(s) have EXIF orientation other than 1 ({names}): a viewer shows them turned, "
+            "camkit calibrates the stored pixel grid, and the camera file describes that grid")
+
+
+def results_to_dict(result: Any, image_names: Sequence[str] | None = None,
+                    image_info: Sequence[Any] | None = None) -> dict[str, Any]:
     """``{"model": {type, width, height, parameters by name}, "rms_px", "std_px": [x, y],
     "views": [{"image", "found", "n_corners", "rms_px"}], "stddev": {parameter: sigma}}``,
     plus the format version, convergence, rejected corners and views, and per view the pose
@@ -33,7 +64,9 @@ def results_to_dict(result: Any, image_names: Sequence[str] | None = None) -> di
     yaw/pitch/roll relative to the board (degrees).
 
     ``views`` has one entry per input view (or image): ``found`` is false and ``rms_px`` null
-    for a view that was left out."""
+    for a view that was left out. With ``image_info`` (:class:`camkit.io.ImageInfo` per
+    image), ``camera_info`` holds the EXIF camera, lens and focal lengths, and each view its
+    EXIF ``orientation`` when not 1."""
     from camkit.calib.calibrate import CalibrationResult
 
     if not isinstance(result, CalibrationResult):
@@ -60,6 +93,9 @@ def results_to_dict(result: Any, image_names: Sequence[str] | None = None) -> di
         else:
             n = dets[i].n_found if dets is not None else int(np.isfinite(result.image_points[i]).all(axis=1).sum())
             entry.update(found=False, n_corners=int(n), rms_px=None, reason=reasons.get(i, ""))
+        if image_info is not None and i < len(image_info) and image_info[i] is not None \
+                and image_info[i].orientation != 1:
+            entry["exif_orientation"] = int(image_info[i].orientation)
         views.append(entry)
     return {
         "format": "camkit-calibration", "version": RESULTS_FORMAT_VERSION,
@@ -69,10 +105,13 @@ def results_to_dict(result: Any, image_names: Sequence[str] | None = None) -> di
         "stddev": {k: _num(v) for k, v in result.stddev.items()},
         "converged": bool(result.converged), "iterations": int(result.iterations), "message": result.message,
         "rejected_corners": [{"view": int(v), "corner": int(c), "reason": r} for v, c, r in result.rejected],
+        "rms_definition": "sqrt(mean over corners of dx^2 + dy^2), as OpenCV's calibrateCamera",
+        "camera_info": camera_info(image_info),
     }
 
 
-def write_results(path: str | os.PathLike, result: Any, image_names: Sequence[str] | None = None) -> Path:
+def write_results(path: str | os.PathLike, result: Any, image_names: Sequence[str] | None = None,
+                  image_info: Sequence[Any] | None = None) -> Path:
     """Write :func:`results_to_dict` as JSON, atomically."""
-    doc = results_to_dict(result, image_names)
+    doc = results_to_dict(result, image_names, image_info)
     return write_atomic(path, (json.dumps(doc, indent=2) + "\n").encode())

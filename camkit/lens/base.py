@@ -88,6 +88,8 @@ class CameraModel(abc.ABC):
     name: ClassVar[str]
     param_names: ClassVar[tuple[str, ...]]
     param_groups: ClassVar[dict[str, tuple[str, ...]]]
+    #: Parameters calibration holds at their start value unless the caller frees them.
+    default_fixed: ClassVar[tuple[str, ...]] = ("skew",)
 
     fx: float
     fy: float

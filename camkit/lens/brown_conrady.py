@@ -70,6 +70,9 @@ class BrownConrady(CameraModel):
         "fx", "fy", "cx", "cy", "skew",
         "k1", "k2", "k3", "p1", "p2", "k4", "k5", "k6", "s1", "s2", "s3", "s4",
     )
+    #: Held by calibration unless freed: skew, and the terms beyond k1, k2, p1, p2, k3 (OpenCV's
+    #: default 5-coefficient model).
+    default_fixed: ClassVar[tuple[str, ...]] = ("skew", "k4", "k5", "k6", "s1", "s2", "s3", "s4")
     param_groups: ClassVar[dict[str, tuple[str, ...]]] = {
         "focal": ("fx", "fy"),
         "principal_point": ("cx", "cy"),

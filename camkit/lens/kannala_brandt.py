@@ -46,6 +46,8 @@ class KannalaBrandt(CameraModel):
 
     name: ClassVar[str] = "kannala-brandt"
     param_names: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "skew", "k1", "k2", "k3", "k4")
+    #: Held by calibration unless freed: skew (k1..k4 are fitted, as OpenCV's fisheye module does).
+    default_fixed: ClassVar[tuple[str, ...]] = ("skew",)
     param_groups: ClassVar[dict[str, tuple[str, ...]]] = {
         "focal": ("fx", "fy"),
         "principal_point": ("cx", "cy"),

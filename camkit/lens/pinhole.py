@@ -54,6 +54,8 @@ class Pinhole(CameraModel):
 
     name: ClassVar[str] = "pinhole"
     param_names: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "skew")
+    #: Held by calibration unless freed.
+    default_fixed: ClassVar[tuple[str, ...]] = ("skew",)
     param_groups: ClassVar[dict[str, tuple[str, ...]]] = {
         "focal": ("fx", "fy"),
         "principal_point": ("cx", "cy"),

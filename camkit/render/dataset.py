@@ -15,6 +15,7 @@ from camkit.calib.targets import Checkerboard
 from camkit.errors import EstimationError, ParameterError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
+from camkit.io._atomic import write_atomic
 from camkit.io.images import write_png
 from camkit.lens.base import CameraModel
 from camkit.render.effects import Effects, render_view
@@ -78,22 +79,41 @@ def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
     return out
 
 
-def _to_file_image(img: np.ndarray) -> np.ndarray:
-    if img.dtype == np.uint16:
-        return img
-    return np.clip(np.floor(img * 255.0 + 0.5), 0, 255).astype(np.uint8)
+def _file_scale(effects: Effects | None, bit_depth: int) -> tuple[float, int | None]:
+    """(scale, sensor bits): a file sample is ``round(value * scale)``, where value is the
+    rendered image (0..1 without a sensor) or the sensor's count (0..2^bits - 1), so that white
+    lands at the top of the file's range (255 or 65535), as a viewer expects."""
+    top = 255.0 if bit_depth == 8 else 65535.0
+    sensor = effects.sensor if effects is not None else None
+    if sensor is None:
+        return top, None
+    return top / float(sensor.max_dn), int(sensor.bit_depth)
+
+
+def _to_file_image(img: np.ndarray, scale: float, bit_depth: int) -> np.ndarray:
+    dtype = np.uint8 if bit_depth == 8 else np.uint16
+    top = np.iinfo(dtype).max
+    return np.clip(np.floor(img.astype(np.float64) * scale + 0.5), 0, top).astype(dtype)
 
 
 def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Checkerboard, views: int, *,
-                     seed: int, effects: Effects | None = None, progress: Any = None) -> Path:
+                     seed: int, effects: Effects | None = None, progress: Any = None, bit_depth: int = 8) -> Path:
     """Render ``views`` planned views and write ``view_XXX.png`` and ``truth.json`` into
     ``out_dir`` (created if needed). Reproducible: the same seed gives the same bytes.
+
+    Files are 8-bit (``bit_depth=8``, the default) or 16-bit, white at the top of the file's
+    range: a sensor's count ``v`` (0..2^bits - 1) is written as ``round(v * scale)``, a render
+    without a sensor (0..1) as ``round(x * scale)``; ``truth.json`` records ``bit_depth``,
+    ``sensor_bit_depth`` and ``scale``.
 
     ``truth.json`` holds the camera (type, size, parameters), the board, and per view the image
     name, the pose (rotation vector and translation of ``cam_from_target``), every inner
     corner's exact pixel position (null where not projectable) and its visibility.
     Returns the folder.
     """
+    if bit_depth not in (8, 16):
+        raise ParameterError(f"bit_depth: expected 8 or 16, got {bit_depth!r}")
+    scale, sensor_bits = _file_scale(effects, bit_depth)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -102,7 +122,7 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Che
     for k, pose in enumerate(poses):
         img, truth = render_view(camera, pose, board, effects, rng=rng)
         name = f"view_{k:03d}.png"
-        write_png(out / name, _to_file_image(img))
+        write_png(out / name, _to_file_image(img, scale, bit_depth))
         records.append({
             "image": name,
             "cam_from_target": {"rvec": pose.rvec.tolist(), "t": pose.t.tolist()},
@@ -119,11 +139,12 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Che
         "board": {"inner_cols": board.inner_cols, "inner_rows": board.inner_rows, "square": board.square,
                   "margin": board.margin},
         "pixel_origin": "centre of the top-left pixel is (0, 0)",
+        "bit_depth": bit_depth,
+        "sensor_bit_depth": sensor_bits,
+        "scale": scale,
         "views": records,
     }
-    tmp = out / ".truth.json.tmp"
-    tmp.write_text(json.dumps(doc, indent=1))
-    os.replace(tmp, out / "truth.json")
+    write_atomic(out / "truth.json", json.dumps(doc, indent=1).encode())
     return out
 
 

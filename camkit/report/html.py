@@ -95,7 +95,7 @@ def _thumb(img: np.ndarray, width: int) -> tuple[np.ndarray, float]:
 
 def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] | None = None,
                  image_names: Sequence[str] | None = None, truth: CameraModel | None = None,
-                 title: str = "Camera calibration") -> Path:
+                 title: str = "Camera calibration", image_info: Sequence[Any] | None = None) -> Path:
     """Write the calibration report: per-view RMS, residuals (scatter and vectors over the
     image), corner coverage, the distortion field, the projection uncertainty, the parameter
     table with one-sigma values (and the true values when ``truth`` is given, as in the
@@ -109,6 +109,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
         The input images, for the thumbnails (in input order).
     image_names : sequence of str, optional
     truth : CameraModel, optional
+    image_info : sequence of ImageInfo or None, optional
+        The images' EXIF (camera, lens, focal length, orientation), shown when present.
     """
     import matplotlib
 
@@ -137,7 +139,7 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     ax.bar(np.arange(len(vnames)), result.view_rms_px, color="#4477aa")
     ax.axhline(result.rms_px, color="#cc3311", lw=1, label=f"overall RMS {result.rms_px:.3f} px")
     ax.set_xticks(np.arange(len(vnames)), vnames, rotation=60, ha="right", fontsize=7)
-    ax.set_ylabel("RMS reprojection error (px)")
+    ax.set_ylabel("RMS reprojection error per corner (px)")
     ax.legend(loc="upper right")
     figs.append(("Per-view RMS", _fig_to_img(fig, "per-view RMS bars"),
                  "A view much above the others is worth a look: motion blur, a bent board, a wrong detection."))
@@ -271,6 +273,17 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     summary = (f"<p>{model.name} model, {W}x{H} px; {len(result.view_indices)} of {n_in} views used; "
                f"RMS {result.rms_px:.3f} px; residual std {result.std_px[0]:.3f} / {result.std_px[1]:.3f} px "
                f"(x / y); {html.escape(result.message)} after {result.iterations} iterations.</p>")
+    from camkit.io.results import camera_info, orientation_note
+
+    exif = camera_info(image_info)
+    labels = {"make": "make", "model": "model", "lens": "lens", "focal_length_mm": "focal length (mm)",
+              "focal_length_35mm": "35 mm equivalent focal length (mm)"}
+    exif_items = "".join(f"<li>{labels[k]}: {html.escape(str(v))}</li>" for k, v in exif.items() if k in labels)
+    note = orientation_note(image_info)
+    summary += ((f"<p>From the images' EXIF:</p><ul>{exif_items}</ul>" if exif_items else "")
+                + (f"<p class='warn'>Note: {html.escape(note)}.</p>" if note else "")
+                + "<p>RMS: sqrt(mean over corners of dx&sup2; + dy&sup2;), as OpenCV's calibrateCamera reports it, "
+                  "overall and per view; residual std: per axis.</p>")
     body = [f"<h1>{html.escape(title)}</h1>", summary, "<h2>Parameters</h2>", table,
             "<p class=note>Pixel (0, 0) is the centre of the top-left pixel. Sigmas are one standard deviation, "
             "from the covariance of the fit scaled by the residual variance.</p>",

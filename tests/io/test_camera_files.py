@@ -10,7 +10,18 @@ import numpy as np
 import pytest
 
 from camkit.errors import ParameterError
-from camkit.io import load_camera, read_opencv_yaml, save_camera, write_colmap_cameras, write_opencv_yaml
+from camkit.io import (
+    export_camera,
+    load_camera,
+    read_camera,
+    read_colmap_cameras,
+    read_opencv_yaml,
+    save_camera,
+    write_colmap_cameras,
+    write_kalibr_yaml,
+    write_opencv_yaml,
+    write_ros_yaml,
+)
 from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
 from camkit.render import default_camera
 
@@ -95,7 +106,8 @@ def test_yaml_malformed(tmp_path):
                          ("image_width: 640\nimage_height: 480\n", "missing matrix 'camera_matrix'"),
                          ("image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n  data: [1, 2]\n",
                           "3x3 expected 9 values"),
-                         ("!!python/object:os.system ls\n", "cannot read line")]:
+                         ("!!python/object/apply:os.system [ls]\n", "not valid YAML"),
+                         ("image_width: [1\n", "not valid YAML")]:
         p.write_text(text)
         with pytest.raises(ParameterError) as info:
             read_opencv_yaml(p)
@@ -110,3 +122,72 @@ def test_colmap_export_shifts_the_origin(tmp_path):
         assert float(r[6]) - 0.5 == pytest.approx(m.cx) and float(r[7]) - 0.5 == pytest.approx(m.cy)
     with pytest.raises(ParameterError, match="COLMAP has no skew"):
         write_colmap_cameras(tmp_path / "x.txt", [Pinhole(fx=1.0, fy=1.0, cx=0, cy=0, skew=0.1, width=2, height=2)])
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda m: m.name)
+def test_ros_camera_info_round_trip_has_every_field(tmp_path, model):
+    import yaml
+
+    p = write_ros_yaml(tmp_path / "ros.yaml", model, camera_name="front")
+    doc = yaml.safe_load(p.read_text())
+    assert list(doc) == ["image_width", "image_height", "camera_name", "camera_matrix", "distortion_model",
+                         "distortion_coefficients", "rectification_matrix", "projection_matrix"]
+    assert doc["camera_name"] == "front" and doc["rectification_matrix"]["data"] == list(np.eye(3).ravel())
+    assert (doc["projection_matrix"]["rows"], doc["projection_matrix"]["cols"]) == (3, 4)
+    back = read_camera(p)
+    if isinstance(model, Pinhole):  # a pinhole travels as plumb_bob with zero coefficients
+        assert (back.fx, back.fy, back.cx, back.cy) == (model.fx, model.fy, model.cx, model.cy)
+    else:
+        assert back == model
+
+
+@pytest.mark.parametrize("model", MODELS, ids=lambda m: m.name)
+def test_colmap_round_trip(tmp_path, model):
+    p = write_colmap_cameras(tmp_path / "cameras.txt", [model, model])
+    cams = read_colmap_cameras(p)
+    assert sorted(cams) == [1, 2]
+    back = cams[1]
+    assert type(back) is type(model)
+    for name in model.param_names:
+        assert getattr(back, name) == pytest.approx(getattr(model, name), abs=1e-12), name
+    assert read_camera(p) == back
+
+
+def test_colmap_simple_models_and_errors(tmp_path):
+    p = tmp_path / "cameras.txt"
+    p.write_text("# header\n1 SIMPLE_RADIAL 640 480 500.0 320.5 240.5 -0.1\n2 SIMPLE_PINHOLE 640 480 500 320 240\n")
+    cams = read_colmap_cameras(p)
+    assert isinstance(cams[1], BrownConrady) and cams[1].fx == cams[1].fy == 500.0 and cams[1].cx == 320.0
+    assert cams[1].k1 == -0.1 and isinstance(cams[2], Pinhole)
+    p.write_text("1 THIN_PRISM_FISHEYE 640 480 1 2 3 4 5 6 7 8 9 10 11 12\n")
+    with pytest.raises(ParameterError, match="COLMAP model THIN_PRISM_FISHEYE has no camkit form"):
+        read_colmap_cameras(p)
+    p.write_text("1 PINHOLE 640 480 500 500 320\n")
+    with pytest.raises(ParameterError, match="PINHOLE takes 4 parameters, got 3"):
+        read_colmap_cameras(p)
+
+
+def test_kalibr_round_trip_and_refusals(tmp_path):
+    for model in (MODELS[2], BrownConrady(fx=500.0, fy=501.0, cx=320.0, cy=240.0, k1=-0.2, k2=0.05, p1=1e-3,
+                                          p2=-2e-3, width=640, height=480)):
+        p = write_kalibr_yaml(tmp_path / "camchain.yaml", model)
+        assert read_camera(p) == model
+    with pytest.raises(ParameterError, match=r"radtan model holds k1, k2, p1, p2 only; \['k3'\]"):
+        write_kalibr_yaml(tmp_path / "x.yaml", MODELS[1])
+
+
+@pytest.mark.parametrize("to", ["json", "opencv", "ros", "colmap", "kalibr"])
+def test_export_then_read_back(tmp_path, to):
+    model = MODELS[2]  # Kannala-Brandt: every format holds it exactly
+    p = export_camera(model, tmp_path / f"cam.{to}", to)
+    assert read_camera(p) == model
+
+
+def test_read_camera_refuses_other_files(tmp_path):
+    p = tmp_path / "notes.yaml"
+    p.write_text("shopping: [milk, bread]\n")
+    with pytest.raises(ParameterError, match="not a camera file camkit reads"):
+        read_camera(p)
+    p.write_bytes(bytes(range(256)))
+    with pytest.raises(ParameterError, match="not a camera file"):
+        read_camera(p)
