@@ -62,12 +62,16 @@ def test_truth_json_matches_the_render(tmp_path):
 
 def test_cli_simulate(tmp_path, capsys):
     rc = main(["simulate", "--views", "2", "--board", "7x5", "--square", "35mm", "--model", "kannala-brandt",
-               "--seed", "3", "-o", str(tmp_path), "--noise", "--bayer", "GRBG", "--demosaic", "raw"])
+               "--seed", "3", "-o", str(tmp_path), "--noise", "--bayer", "GRBG", "--demosaic", "raw",
+               "--bit-depth", "16"])
     assert rc == 0
     doc = json.loads((tmp_path / "truth.json").read_text())
     assert doc["board"] == {"inner_cols": 7, "inner_rows": 5, "square": 0.035, "margin": 0.035}
     raw = np.asarray(Image.open(tmp_path / "view_000.png"))
-    assert raw.ndim == 2 and raw.dtype == np.uint16  # the raw 12-bit mosaic
+    assert raw.ndim == 2 and raw.dtype == np.uint16  # the raw 12-bit mosaic, scaled to 16 bits
+    assert doc["bit_depth"] == 16 and doc["sensor_bit_depth"] == 12
+    counts = np.round(raw / doc["scale"])  # every sample is a 12-bit count times the recorded scale
+    assert counts.max() <= 4095 and np.abs(np.floor(counts * doc["scale"] + 0.5) - raw).max() == 0
     assert "wrote 2 images" in capsys.readouterr().out
 
 
