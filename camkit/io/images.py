@@ -266,7 +266,7 @@ def read_image_info(path: str | os.PathLike) -> ImageInfo:
 def _info(data: bytes, p: Path) -> ImageInfo:
     kind = _kind(data, p)
     if kind == "RAW":
-        with _rawpy_open(data, p) as raw:
+        with _RawHandle(data, p) as raw:
             s = raw.sizes
             w, h = int(s.width), int(s.height)
         fields = _pillow_exif_best_effort(data, p)
@@ -343,7 +343,7 @@ def read_image(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS)
         truncated, or exceeds ``max_pixels``; the message names the file and the reason.
     """
     p = _as_path(path)
-    cap = _as_cap(max_pixels)
+    cap = as_positive_int(max_pixels, "max_pixels")
     data = _read_bytes(p)
     kind = _kind(data, p)
     if kind == "RAW":
@@ -365,10 +365,6 @@ def read_image(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS)
         raise
     except Exception as exc:  # truncated data, corrupt streams: whatever the decoder raised
         raise ImageFileError(f"{p}: damaged {im.format} file ({_why(exc)})") from None
-
-
-def _as_cap(max_pixels: Any) -> int:
-    return as_positive_int(max_pixels, "max_pixels")
 
 
 def _pillow_pixels(im: Any, data: bytes, p: Path) -> np.ndarray:
@@ -503,10 +499,6 @@ class _RawHandle:
         self.raw.close()
 
 
-def _rawpy_open(data: bytes, p: Path) -> _RawHandle:
-    return _RawHandle(data, p)
-
-
 def read_raw(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS) -> RawImage:
     """The sensor's mosaic of a camera RAW file (DNG, CR2, CR3, NEF, ARW, RAF, ORF, RW2, ...),
     through rawpy (LibRaw), with what :func:`camkit.sensor.demosaic` needs to apply.
@@ -532,12 +524,12 @@ def read_raw(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS) -
         it exceeds ``max_pixels``.
     """
     p = _as_path(path)
-    cap = _as_cap(max_pixels)
+    cap = as_positive_int(max_pixels, "max_pixels")
     return _read_raw_data(_read_bytes(p), p, cap)
 
 
 def _read_raw_data(data: bytes, p: Path, cap: int) -> RawImage:
-    with _rawpy_open(data, p) as raw:
+    with _RawHandle(data, p) as raw:
         s = raw.sizes
         _check_pixels(p, int(s.width), int(s.height), cap)
         try:
@@ -556,10 +548,9 @@ def _read_raw_data(data: bytes, p: Path, cap: int) -> RawImage:
         shape = None if pattern_idx is None else pattern_idx.shape
         raise ImageFileError(f"{p}: the sensor is not a 2x2 Bayer mosaic (colour pattern {shape}); camkit "
                              "demosaics Bayer sensors only (not X-Trans or Foveon)")
-    letters = "".join(desc[int(k)] if 0 <= int(k) < len(desc) else "?" for k in pattern_idx.ravel())
-    pattern = letters
+    pattern = "".join(desc[int(k)] if 0 <= int(k) < len(desc) else "?" for k in pattern_idx.ravel())
     if pattern not in ("RGGB", "BGGR", "GRBG", "GBRG"):
-        raise ImageFileError(f"{p}: colour filter pattern {letters!r} (colours {desc!r}) is not an RGB Bayer "
+        raise ImageFileError(f"{p}: colour filter pattern {pattern!r} (colours {desc!r}) is not an RGB Bayer "
                              "pattern camkit demosaics")
     black2 = np.array([black[int(k)] if int(k) < len(black) else 0.0 for k in pattern_idx.ravel()]).reshape(2, 2)
     rgb_wb = np.ones(3)

@@ -24,3 +24,14 @@ def test_bad_input(tmp_path, name, board, dpi, match):
     with pytest.raises(CamkitError, match=match):
         write_board(tmp_path / name, board, dpi=dpi)
     assert not (tmp_path / name).exists()
+
+
+@pytest.mark.parametrize("paper,match", [("A5", "paper: expected A4, A3, letter or WxHmm"),
+                                         ("0x200mm", "paper: expected a positive size"),
+                                         ((210.0,), "paper: expected a name or"),
+                                         ("A4", "largest square that fits is 26 mm")])
+def test_bad_paper_is_refused_and_nothing_written(tmp_path, paper, match):
+    board = Checkerboard(9, 6, 0.04 if paper == "A4" else 0.025)
+    with pytest.raises(CamkitError, match=match):
+        write_board(tmp_path / "b.pdf", board, paper=paper)
+    assert not (tmp_path / "b.pdf").exists()

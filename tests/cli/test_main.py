@@ -322,12 +322,9 @@ def test_interrupt_leaves_no_partial_file(tmp_path, monkeypatch, capsys):
 
     target = tmp_path / "camera.json"
     target.write_text("old")
-    real_replace = atomic.os.replace
-
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(atomic.os, "replace", real_replace)
     src = save_camera(tmp_path / "src.json", default_camera("pinhole"))
     monkeypatch.setattr(atomic.os, "replace", interrupted)
     assert main(["export", str(src), "--to", "json", "-o", str(target)]) == 130
