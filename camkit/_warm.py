@@ -1,8 +1,13 @@
 """Compile (into numba's on-disk cache) the kernels of the calibration pipeline: detection,
-PNG decoding, thumbnails, projection with Jacobians; and let matplotlib build its font cache.
+thumbnails, projection with Jacobians; and let matplotlib build its font cache.
 ``camkit demo`` runs this in a second process on a first run, so compilation overlaps with
 rendering on another core; once the caches are filled it only loads and exits. Run as
-``python -m camkit._warm``."""
+``python -m camkit._warm``.
+
+It first compiles the kernels that the demo's renderer meets last in its first view (Malvar
+demosaicing, rotation to a vector): the renderer is still compiling its own when they are
+done, and numba looks in its cache when a kernel is first called, so the main process loads
+them instead of compiling them a second time (benchmarks/notes.md, issue 20)."""
 
 from __future__ import annotations
 
@@ -10,6 +15,14 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+
+
+def warm_render_tail() -> None:
+    from camkit.geometry.rotation import rvec_from_matrix
+    from camkit.sensor.demosaic import demosaic
+
+    demosaic(np.full((8, 8), 1000, dtype=np.uint16), "RGGB", "malvar")
+    rvec_from_matrix(np.eye(3))
 
 
 def warm_pipeline() -> None:
@@ -41,4 +54,5 @@ def warm_pipeline() -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover - run in a child process
+    warm_render_tail()
     warm_pipeline()

@@ -112,6 +112,8 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     console.print(f"camkit demo: {args.views} simulated views of a {DEMO_BOARD.inner_cols}x{DEMO_BOARD.inner_rows} "
                   f"board (30 mm squares) through a 1280x960 camera with barrel distortion, defocus, sensor noise "
                   "and a Bayer mosaic; then calibration as `camkit calibrate` does it")
+    console.print("The first run compiles camkit's kernels once (about 10 s more on 2 cores); "
+                  "later runs load them from numba's cache.")
     with _Progress(console) as progress:
         r = run_demo(args.output, views=args.views, seed=args.seed, progress=progress)
     job = r.job

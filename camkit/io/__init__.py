@@ -17,6 +17,7 @@ from camkit.io.camera_files import (
 from camkit.io.images import (
     DEFAULT_MAX_PIXELS,
     IMAGE_SUFFIXES,
+    PNG_LEVEL,
     RAW_SUFFIXES,
     ImageFileError,
     ImageInfo,
@@ -34,6 +35,7 @@ __all__ = [
     "DEFAULT_MAX_PIXELS",
     "EXPORT_FORMATS",
     "IMAGE_SUFFIXES",
+    "PNG_LEVEL",
     "RAW_SUFFIXES",
     "ImageFileError",
     "ImageInfo",

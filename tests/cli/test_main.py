@@ -49,6 +49,29 @@ def test_demo_prints_estimate_next_to_truth(demo_dir, capsys):
     assert row and abs(float(row.group(1)) - float(row.group(2))) < 1.0
 
 
+def test_demo_speaks_within_five_seconds(tmp_path):
+    # Issue 20 item 10: on a first run most of the time is numba compiling, so the demo says
+    # so at once. Measured from process start (interpreter, imports) to the second line.
+    import os
+    import signal
+    import time
+
+    t0 = time.monotonic()
+    proc = subprocess.Popen([sys.executable, "-m", "camkit", "demo", "-o", str(tmp_path / "d"), "--views", "3"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    try:
+        lines = []
+        while not any("compiles camkit's kernels once" in ln for ln in lines):
+            line = proc.stdout.readline()
+            assert line, f"the demo ended before saying that kernels compile once: {lines}"
+            lines.append(line)
+        elapsed = time.monotonic() - t0
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)  # the demo and its compiling helper process
+        proc.wait()
+    assert elapsed < 5.0, f"first words after {elapsed:.1f} s"
+
+
 def _chromium():
     for name in ("chromium", "chromium-browser", "google-chrome", "chrome"):
         path = shutil.which(name)

@@ -330,3 +330,22 @@ def test_write_float_tiff_and_jpeg(tmp_path):
         write_image(tmp_path / "a.gif", RGB)
     with pytest.raises(ShapeError, match="for JPEG"):
         write_image(tmp_path / "a.jpg", RGB.astype(np.uint16))
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16])
+def test_png_level_is_lossless_and_trades_size(tmp_path, dtype):
+    # A smooth ramp with a little noise: every zlib level gives the same pixels, and level 9
+    # a file no larger than level 0 (which stores the rows uncompressed).
+    yy, xx = np.mgrid[0:64, 0:96]
+    ramp = (xx * 2 + yy + RNG.integers(0, 3, (64, 96)))[:, :, None] * np.array([1, 2, 3])
+    img = ramp.astype(dtype)
+    sizes = {}
+    for level in (0, 1, 9):
+        p = write_image(tmp_path / f"l{level}.png", img, png_level=level)
+        assert np.array_equal(read_image(p), img)
+        sizes[level] = p.stat().st_size
+    assert sizes[9] <= sizes[1] < sizes[0]
+    for bad in (-1, 10, 1.5, True, "1"):
+        with pytest.raises(ParameterError, match=r"png_level: expected an integer 0\.\.9"):
+            write_png(tmp_path / "bad.png", img, png_level=bad)
+    assert not (tmp_path / "bad.png").exists()
