@@ -1,0 +1,70 @@
+"""The stress corpus of issue 21: views drawn from a seed, with the labellings a detector may
+return."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from camkit.calib import Checkerboard
+from camkit.errors import ParameterError
+from camkit.geometry import Pose
+from camkit.geometry.rotation import matrix_from_rvec
+from camkit.lens import Pinhole
+from camkit.render import render_checkerboard
+from camkit.render.stress import acceptable_labellings, stress_view
+
+CAM = Pinhole(fx=800.0, fy=800.0, cx=319.5, cy=239.5, width=640, height=480)
+
+
+def _front(board: Checkerboard, back: bool = False) -> np.ndarray:
+    R = matrix_from_rvec([0.0, np.pi, 0.0]) if back else np.eye(3)
+    centre = board.object_points().mean(axis=0)
+    return CAM.project(Pose(R, np.array([0.0, 0.0, 1.0]) - R @ centre).apply(board.object_points()))
+
+
+def test_labellings_follow_the_colours():
+    # 9x6 inner corners: the half-turn swaps the colours, so only the identity is right.
+    b = Checkerboard(9, 6, 0.03)
+    (only,) = acceptable_labellings(b, _front(b))
+    assert np.array_equal(only, np.arange(54))
+    # 7x5: the half-turn keeps the colours; both are right.
+    b = Checkerboard(7, 5, 0.03)
+    got = {tuple(p) for p in acceptable_labellings(b, _front(b))}
+    grid = np.arange(35).reshape(5, 7)
+    assert got == {tuple(grid.ravel()), tuple(grid[::-1, ::-1].ravel())}
+    # Seen from behind (a print with the colours the other way round): the right-handed
+    # labellings are the mirrors, and the colours cannot fix which.
+    got = {tuple(p) for p in acceptable_labellings(b, _front(b, back=True))}
+    assert got == {tuple(grid[:, ::-1].ravel()), tuple(grid[::-1, :].ravel())}
+
+
+def test_truth_matches_the_renderer_and_seeds_repeat():
+    v = stress_view(3, megapixels=(0.1, 0.3))
+    w = stress_view(3, megapixels=(0.1, 0.3))
+    assert np.array_equal(v.image, w.image) and v.tags == w.tags
+    assert v.image.dtype == np.uint8 and v.image.shape[:2] == (v.camera.height, v.camera.width)
+    vis = v.corners_px[v.visible]
+    assert len(vis) and ((vis >= 0) & (vis <= [v.camera.width - 1, v.camera.height - 1])).all()
+    # A clean render of the same board and camera puts the corners where the truth says.
+    b = Checkerboard(5, 4, 0.03)
+    img, truth = render_checkerboard(CAM, Pose(np.eye(3), [-0.05, -0.04, 0.6]), b)
+    assert np.allclose(acceptable_labellings(b, truth.corners_px)[0], np.arange(20))
+
+
+def test_corpus_spans_what_the_issue_asks():
+    views = [stress_view(s, megapixels=(0.1, 0.4)) for s in range(40)]
+    lenses = {v.tags["lens"] for v in views}
+    assert lenses == {"pinhole", "barrel", "pincushion", "fisheye"}
+    assert any(v.jpeg_quality for v in views) and any(v.noise > 0 for v in views)
+    assert any(not v.whole for v in views) and any(v.tags.get("occluders") for v in views)
+    assert any(v.blur_sigma_px > 1 for v in views) and any(v.motion_px > 0 for v in views)
+    assert any(v.tags["inverted_print"] for v in views)
+    assert all(1 <= len(v.labellings) <= 4 for v in views)
+
+
+def test_bad_arguments():
+    with pytest.raises(ParameterError, match="seed: expected a non-negative integer"):
+        stress_view(-1)
+    with pytest.raises(ParameterError, match="low <= high"):
+        stress_view(0, megapixels=(2.0, 1.0))
