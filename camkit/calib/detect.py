@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -114,80 +113,137 @@ def _edge_directions(v: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([np.cos(a), np.sin(a)], -1), np.stack([np.cos(b), np.sin(b)], -1)], axis=1)
 
 
-def _assemble(pts: np.ndarray, dirs: np.ndarray, max_angle_deg: float = 20.0) -> tuple[np.ndarray, np.ndarray]:
-    """Link each corner to its nearest corner along each of its edge directions (mutual links
-    only), then walk the links breadth-first assigning lattice coordinates; the largest
-    connected lattice wins. Returns (indices into pts, lattice coordinates)."""
+def _predict(L: dict[tuple[int, int], int], pts: np.ndarray, a: int, b: int) -> tuple[np.ndarray, float] | None:
+    """Where lattice position (a, b) should be, from the members near it: a quadratic map
+    (lattice to image) where seven or more members within two steps span both axes, an affine
+    one where three or more do, else a straight continuation of a row or column. Returns the
+    prediction and the local step in pixels."""
+    near = [(a + da, b + db) for da in range(-2, 3) for db in range(-2, 3) if (a + da, b + db) in L]
+    if len(near) >= 3:
+        rel = np.array(near, dtype=np.float64) - (a, b)
+        if np.ptp(rel[:, 0]) >= 1 and np.ptp(rel[:, 1]) >= 1:
+            P = pts[[L[n] for n in near]]
+            terms = _poly_terms(rel) if (len(near) >= 7 and np.ptp(rel[:, 0]) >= 2 and np.ptp(rel[:, 1]) >= 2) \
+                else _poly_terms(rel)[:, :3]
+            coef, *_ = np.linalg.lstsq(terms, P, rcond=None)
+            step = float(np.min(np.hypot(*coef[1:3].T)))
+            return coef[0], step
+    for da, db in ((1, 0), (-1, 0), (0, 1), (0, -1)):
+        p1, p2 = L.get((a - da, b - db)), L.get((a - 2 * da, b - 2 * db))
+        if p1 is not None and p2 is not None:
+            d = pts[p1] - pts[p2]
+            return pts[p1] + d, float(np.hypot(*d))
+    return None
+
+
+def _grow(pts: np.ndarray, dirs: np.ndarray, tree, seed: int, spacing: np.ndarray,
+          used: np.ndarray, img: np.ndarray, contrast: float) -> dict[tuple[int, int], int]:
+    """A lattice grown from one corner: its four neighbours along its own edge directions, then
+    position after position predicted from the members near it (perspective and lens
+    distortion change the step and the direction only a little from one square to the next),
+    each taking the unused candidate nearest the prediction within a third of the local step."""
+    L: dict[tuple[int, int], int] = {(0, 0): seed}
+    taken = {seed}
+    for (ax, sg), pos in zip(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)), ((1, 0), (-1, 0), (0, 1), (0, -1)),
+                             strict=True):
+        u = sg * dirs[seed, ax]
+        d, j = tree.query(pts[seed], k=min(9, len(pts)))
+        best = None
+        for dist, k in zip(np.atleast_1d(d)[1:], np.atleast_1d(j)[1:], strict=True):
+            if k in taken or used[k]:
+                continue
+            w = (pts[k] - pts[seed]) / dist
+            if w @ u > np.cos(np.radians(25)) and 0.4 * spacing[seed] < dist < 2.5 * spacing[seed]:
+                best = k
+                break
+        if best is None:
+            return L
+        L[pos] = int(best)
+        taken.add(int(best))
+    # Each link must run along an edge between a black and a white square: across its middle
+    # the shade changes. A diagonal link (which also joins two corners, and would shear the
+    # labels) crosses the middle of one square, where it does not.
+    a = pts[seed]
+    b = pts[[L[p] for p in ((1, 0), (-1, 0), (0, 1), (0, -1))]]
+    d = b - a
+    normal = np.stack([-d[:, 1], d[:, 0]], axis=-1) * 0.2
+    mid = a + 0.5 * d
+    side = _sample(img, np.concatenate([mid[:, :1] + normal[:, :1], mid[:, :1] - normal[:, :1]]),
+                   np.concatenate([mid[:, 1:] + normal[:, 1:], mid[:, 1:] - normal[:, 1:]]), "bilinear").ravel()
+    if (np.abs(side[:4] - side[4:]) < 0.4 * contrast).any():
+        return {(0, 0): seed}
+    # The seed's square of nine: each diagonal neighbour where the two edge neighbours put it
+    # (a corner whose edge neighbours were misread, e.g. a diagonal taken for an edge
+    # neighbour under strong perspective, fails here and seeds nothing).
+    found_diag = 0
+    for da, db in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
+        where = pts[L[(da, 0)]] + pts[L[(0, db)]] - pts[seed]
+        step = min(np.hypot(*(pts[L[(da, 0)]] - pts[seed])), np.hypot(*(pts[L[(0, db)]] - pts[seed])))
+        dist, k = tree.query(where, k=1)
+        if dist <= step / 3.0 and k not in taken and not used[k]:
+            L[(da, db)] = int(k)
+            taken.add(int(k))
+            found_diag += 1
+    if found_diag < 3:
+        return {(0, 0): seed}
+    grew = True
+    tried: dict[tuple[int, int], int] = {}
+    while grew:
+        grew = False
+        frontier = {(a + da, b + db) for (a, b) in L for da, db in ((1, 0), (-1, 0), (0, 1), (0, -1))} - set(L)
+        claims: dict[int, tuple[float, tuple[int, int]]] = {}
+        for pos in frontier:
+            n_near = sum((pos[0] + da, pos[1] + db) in L for da in range(-2, 3) for db in range(-2, 3))
+            if tried.get(pos) == n_near:
+                continue  # nothing new to predict it from
+            tried[pos] = n_near
+            pred = _predict(L, pts, *pos)
+            if pred is None:
+                continue
+            where, step = pred
+            dist, k = tree.query(where, k=1)
+            if dist > step / 3.0 or k in taken or used[k]:
+                continue
+            if k not in claims or dist < claims[k][0]:
+                claims[int(k)] = (float(dist), pos)
+        for k, (_, pos) in claims.items():
+            if pos not in L:
+                L[pos] = k
+                taken.add(k)
+                grew = True
+    return L
+
+
+def _assemble(pts: np.ndarray, dirs: np.ndarray, n_corners: int, img: np.ndarray,
+              contrast: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The corners' lattice: grown (:func:`_grow`) from the corners in turn, most central
+    first among those with four neighbours along their edges, keeping the largest; corners in
+    a grown lattice seed no other. Returns (indices into pts, lattice coordinates from 0)."""
+    from scipy.spatial import cKDTree
+
     n = len(pts)
-    D = pts[None, :, :] - pts[:, None, :]
-    dist = np.hypot(D[..., 0], D[..., 1])
-    np.fill_diagonal(dist, np.inf)
-    cosmax = np.cos(np.radians(max_angle_deg))
-    nb = -np.ones((n, 4), dtype=np.int64)
-    # The neighbour along an edge is among a corner's 8 nearest (4 along the edges, 4 on the
-    # diagonals), so only those are looked at.
-    K = min(8, n - 1)
-    rows = np.arange(n)[:, None]
-    nn = np.argpartition(dist, K - 1, axis=1)[:, :K] if K > 0 else np.zeros((n, 0), np.int64)
-    Dn = D[rows, nn]  # (n, K, 2)
-    dn = dist[rows, nn]
-    for k, (ax, sg) in enumerate(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0))):
-        u = sg * dirs[:, ax]  # (n, 2)
-        cosang = (Dn[..., 0] * u[:, :1] + Dn[..., 1] * u[:, 1:]) / dn
-        cand = np.where(cosang > cosmax, dn, np.inf)
-        if K == 0:
+    tree = cKDTree(pts)
+    d, _ = tree.query(pts, k=min(5, n))
+    spacing = np.median(np.atleast_2d(d)[:, 1:], axis=1) if n > 1 else np.ones(n)
+    used = np.zeros(n, dtype=bool)
+    best: dict[tuple[int, int], int] = {}
+    order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T))
+    for seed in order.tolist():
+        if used[seed]:
             continue
-        j = np.argmin(cand, axis=1)
-        nb[:, k] = np.where(np.isfinite(cand[np.arange(n), j]), nn[np.arange(n), j], -1)
-    spacing = float(np.median(dist.min(axis=1)))
-    # The walk is graph logic over a few hundred corners: plain Python floats, not NumPy
-    # scalars, keep it to a few milliseconds.
-    P = pts.tolist()
-    Dr = dirs.tolist()
-    NB = nb.tolist()
-    # Whether each link is short enough, looked up as Python booleans (indexing the NumPy
-    # distance matrix inside the walk cost more than the rest of it).
-    near = (np.take_along_axis(dist, np.maximum(nb, 0), axis=1) <= 3.6 * spacing).tolist()
-    visited = [False] * n
-    best: dict[int, tuple[int, int]] = {}
-    order = np.argsort(-(nb >= 0).sum(axis=1)).tolist()
-    for seed in order:
-        if visited[seed]:
+        L = _grow(pts, dirs, tree, seed, spacing, used, img, float(contrast[seed]))
+        if len(L) < 5:
             continue
-        comp = {seed: (0, 0)}
-        taken = {(0, 0)}
-        axes = {seed: (Dr[seed][0], Dr[seed][1])}
-        visited[seed] = True
-        queue = deque([seed])
-        while queue:
-            i = queue.popleft()
-            gi, gj = comp[i]
-            (eax, eay), (ebx, eby) = axes[i]
-            for j, ok in zip(NB[i], near[i], strict=True):
-                if j < 0 or not ok or j in comp or i not in NB[j]:
-                    continue
-                sx, sy = P[j][0] - P[i][0], P[j][1] - P[i][1]
-                pa, pb = sx * eax + sy * eay, sx * ebx + sy * eby
-                target = (gi + (1 if pa > 0 else -1), gj) if abs(pa) >= abs(pb) else (gi, gj + (1 if pb > 0 else -1))
-                if target in taken:
-                    continue
-                (dax, day), (dbx, dby) = Dr[j]
-                if abs(dax * eax + day * eay) < abs(dbx * eax + dby * eay):
-                    (dax, day), (dbx, dby) = (dbx, dby), (dax, day)
-                if dax * eax + day * eay < 0:
-                    dax, day = -dax, -day
-                if dbx * ebx + dby * eby < 0:
-                    dbx, dby = -dbx, -dby
-                axes[j] = ((dax, day), (dbx, dby))
-                comp[j] = target
-                taken.add(target)
-                visited[j] = True
-                queue.append(j)
-        if len(comp) > len(best):
-            best = comp
-    idx = np.array(list(best.keys()), dtype=np.int64)
-    g = np.array([best[i] for i in idx], dtype=np.int64).reshape(-1, 2)
-    return idx, g - g.min(axis=0) if len(g) else g
+        used[list(L.values())] = True
+        if len(L) > len(best):
+            best = L
+        if len(best) >= n_corners or used.mean() > 0.9:
+            break
+    if not best:
+        return np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.int64)
+    g = np.array(list(best.keys()), dtype=np.int64)
+    idx = np.array(list(best.values()), dtype=np.int64)
+    return idx, g - g.min(axis=0)
 
 
 def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
@@ -197,25 +253,42 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
        smoothed with sigma = 1.5 px, kept where a circle of radius 4 px around them crosses
        four alternating sectors, with contrast, that are point-symmetric (true inner corners;
        the board's outer edge against the background is not).
-    2. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each estimate,
-       the window's half-size chosen per image from the corner spacing (an eleventh of it,
-       2 to 5 px); each corner's sigma from the fit's residuals.
-    3. Lattice: corners linked to their nearest neighbours along their own edge directions,
-       walked breadth-first into integer coordinates; extra lines (edge corners) trimmed
-       towards the board's size by symmetry; the labelling made right-handed in the image
-       (the printed face is seen) and matched to ``inner_cols x inner_rows`` in either
-       orientation.
-    4. Ordering: a non-square board's lattice fixes the axes; the remaining half-turn is
-       resolved by the board's colours (the outer square diagonal from corner (0, 0) is
-       black, as :class:`Checkerboard` defines it), when the board's colours distinguish the
-       two ends; otherwise corner (0, 0) is the one nearer the image's top-left.
-
-    5. Scale: where the board is not found, steps 1-4 run again on the image halved (2x2 means)
+    2. Lattice: grown from a seed corner whose four edge neighbours lie along its own edge
+       lines (checked across each link: a link along an edge separates black from white, a
+       diagonal one does not) and whose square of nine is complete; then position after
+       position is predicted from the lattice around it (a quadratic map of lattice to image:
+       perspective and lens distortion) and takes the candidate nearest the prediction within
+       a third of the local step.
+    3. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each corner, the
+       window's half-size an eleventh of the corner spacing (2 to 5 px); each corner's sigma
+       from the fit's residuals.
+    4. Verification: every corner against the quadratic map fitted on its neighbours within
+       two steps, itself left out; corners that miss it by more than 8 % of the spacing
+       (0.6 px at least), or that cannot be checked, are dropped, worst first; the largest
+       group of corners linked as neighbours is kept (a group across a whole hidden row is
+       not joined: nothing checks the count across it).
+    5. Labels: the lattice is made right-handed in the image (the printed face is seen). A
+       lattice the board's size is labelled as it is, unless the checker pattern goes on past
+       one end. A shorter one (part of the board hidden or outside the image) is placed
+       against the side where the board's border is seen: half a square out, the outer
+       squares alternate; one and a half out, the plain light margin. Where neither end
+       shows it, or the lattice fits the board either way round, the board is not found. A
+       lattice one line longer than the board (a board with one more corner printed than
+       declared) loses its weaker outer line; the labels along that axis are then fixed up
+       to that shift, which a calibration absorbs into the view's pose.
+    6. Colours: where the half-turn changes the squares' colours (``inner_cols +
+       inner_rows`` odd) they decide it, with square (0, 0) black as :class:`Checkerboard`
+       defines it; otherwise either print (black or white corner squares) is accepted and
+       corner (0, 0) is the end nearer the image's top-left, as OpenCV leaves it. A square
+       board's quarter-turn follows its colours the same way. Labels whose colours disagree
+       (under 80 % of the probed squares) are not returned.
+    7. Scale: where the board is not found, steps 1-6 run again on the image halved (2x2 means)
        as long as its smaller side keeps 600 px, and the corners found there are refined on the
        full image with the smoothing and window scaled by the factor.
 
-    Corners not seen (fingers over the edge squares) are NaN rows. Grey, RGB(A) and 16-bit
-    images are accepted. An image without a board gives ``found=False`` quickly.
+    Corners not seen (fingers over them, outside the image, failing the check) are NaN rows.
+    Grey, RGB(A) and 16-bit images are accepted. An image without a board gives
+    ``found=False`` quickly, with the reason in ``message``.
     """
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
@@ -313,96 +386,320 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
         pts, v, sym = pts[keep], v[keep], sym[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
-    idx, g = _assemble(pts, _edge_directions(v))
+    idx, g = _assemble(pts, _edge_directions(v), n_corners, s, v.max(axis=1) - v.min(axis=1))
     if len(idx) < 4:
         return fail("not found: the corners form no lattice")
-    ext = g.max(axis=0) + 1
-    targets = [t for t in ((cols, rows), (rows, cols)) if ext[0] >= t[0] and ext[1] >= t[1]]
-    if not targets:
-        return fail(f"not found: the largest lattice is {ext[0]}x{ext[1]} corners, smaller than the board's "
-                    f"{cols}x{rows} (partly hidden along a whole edge, or another pattern)")
-    tgt = min(targets, key=lambda t: int(ext[0] - t[0] + ext[1] - t[1]))
-    symv = sym[idx]
-    for ax in (0, 1):
-        while g[:, ax].max() + 1 > tgt[ax]:
-            lo = g[:, ax] == g[:, ax].min()
-            hi = g[:, ax] == g[:, ax].max()
-            drop = lo if symv[lo].mean() > symv[hi].mean() else hi
-            idx, g, symv = idx[~drop], g[~drop], symv[~drop]
-            g = g - g.min(axis=0)
-    ext = g.max(axis=0) + 1
-    M = np.linalg.lstsq(np.c_[g, np.ones(len(g))], pts[idx], rcond=None)[0]
+    spacing = _lattice_spacing(g, pts[idx])
+    r = int(np.clip(round(spacing / 11.0), 2, 5))
+    q, sig = _saddle_fit(s, pts[idx], r)
+    moved = np.hypot(*(q - pts[idx]).T)
+    keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & np.isfinite(sig)
+    keep[keep] = _consistent(g[keep], q[keep], spacing)
+    g, q, sig, symq = g[keep], q[keep], sig[keep], sym[idx][keep]
+    if len(g):
+        part = _largest_part(g)
+        g, q, sig, symq = g[part], q[part], sig[part], symq[part]
+    if len(g) < 4:
+        return fail("not found: the corners form no consistent lattice", r)
+    g = g - g.min(axis=0)
+    M = np.linalg.lstsq(np.c_[g, np.ones(len(g))], q, rcond=None)[0]
     if M[0, 0] * M[1, 1] - M[0, 1] * M[1, 0] < 0:  # make the labelling right-handed in the image
-        g[:, 1] = ext[1] - 1 - g[:, 1]
-    if (ext[0], ext[1]) == (rows, cols) and rows != cols:
-        g = np.stack([g[:, 1], ext[0] - 1 - g[:, 0]], axis=-1)
-        ext = ext[::-1]
-    if (int(ext[0]), int(ext[1])) != (cols, rows):
-        return fail(f"not found: lattice {ext[0]}x{ext[1]} does not match the board's {cols}x{rows}")
-    M = np.linalg.lstsq(np.c_[g, np.ones(len(g))], pts[idx], rcond=None)[0]
-    where = {(int(a), int(b)): pts[i] for i, (a, b) in zip(idx, g, strict=True)}
-
-    def corner(a: int, b: int) -> np.ndarray:
-        return where.get((a, b), M[2] + a * M[0] + b * M[1])  # the lattice fit where not seen
-
-    # Colours decide the half-turn: from each seen corner (a, b) whose diagonal neighbour
-    # (a + 1, b + 1) is seen too, probe half a diagonal step the other way, inside square
-    # (a, b) of the board, which is black when a + b is even; under a half-turn it is square
-    # (cols - a, rows - b). The two predictions differ when cols + rows is odd; every such
-    # corner votes (local probes: perspective and lens distortion cannot move them off their
-    # square, and no corner is extrapolated).
-    a, b = g[:, 0], g[:, 1]
-    nb = np.array([where.get((int(x) + 1, int(y) + 1), (np.nan, np.nan)) for x, y in g])
-    ok = np.isfinite(nb).all(axis=1)
-    agree = 1.0
-    if ok.sum() >= 4:
-        p = pts[idx][ok]
-        probe = p + 0.5 * (p - nb[ok])
-        shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
-        mid = 0.5 * (shade.max() + shade.min())
-        agree = float(np.mean((shade < mid) == ((a[ok] + b[ok]) % 2 == 0)))
+        g[:, 1] = g[:, 1].max() - g[:, 1]
+    ext = g.max(axis=0) + 1
+    # The board's orientation on the lattice: the one needing the fewest lines trimmed. A
+    # lattice longer than the board by a line or two is a board with more corners than were
+    # declared (Bouguet's example board: 14 corners printed, 13 declared), or the pattern's own
+    # outer corners against a dark background; the weaker outer line goes (fewer corners, less
+    # point-symmetric), and the labels along that axis are fixed only up to that shift, which
+    # a calibration absorbs into the view's pose.
+    options = sorted(((max(ext[0] - t[0], 0) + max(ext[1] - t[1], 0), k, t)
+                      for k, t in enumerate(((cols, rows), (rows, cols)))))
+    if options[0][0] == 0:  # where the lattice fits the board as it is, nothing is trimmed
+        options = [o for o in options if o[0] == 0]
+        if len(options) == 2 and options[0][2] != options[1][2] and not any(
+                (ext == np.asarray(o[2])).all() for o in options):
+            # A partial lattice that fits the board either way round: which axis is which is
+            # not fixed by the lattice itself, and a misread border would turn the labels.
+            return fail(f"not found: the {ext[0]}x{ext[1]} corners seen fit the {cols}x{rows} board either way "
+                        "round; part of the board is hidden or outside the image", r)
+    else:
+        # Longer than the board by one line along one axis and exactly as long along the other
+        # (a board with one more corner printed than declared); anything else is not this board.
+        options = [o for o in options if o[0] == 1 and (ext[0] == o[2][0] or ext[1] == o[2][1])][:1]
+    placed = None
+    why = ""
+    for _, _, tgt in options:
+        gt, keep_t = g.copy(), np.ones(len(g), dtype=bool)
+        trimmed = [False, False]
+        for ax in (0, 1):
+            while gt[keep_t, ax].max() - gt[keep_t, ax].min() + 1 > tgt[ax]:
+                lo = keep_t & (gt[:, ax] == gt[keep_t, ax].min())
+                hi = keep_t & (gt[:, ax] == gt[keep_t, ax].max())
+                score_lo = (lo.sum(), -float(np.mean(symq[lo])))
+                score_hi = (hi.sum(), -float(np.mean(symq[hi])))
+                keep_t &= ~(lo if score_lo < score_hi else hi)
+                trimmed[ax] = True
+        gk = gt[keep_t] - gt[keep_t].min(axis=0)
+        sides = _border_evidence(s, gk, q[keep_t], spacing)
+        for ax in (0, 1):
+            if trimmed[ax]:
+                sides[(ax, -1)] = sides[(ax, 1)] = "trimmed"
+        off, why = _place(gk.max(axis=0) + 1, tgt, sides)
+        if off is not None:
+            placed = tgt, off
+            g, q, sig = gk, q[keep_t], sig[keep_t]
+            break
+    if placed is None:
+        why = why or (f"the corner lattice is {ext[0]}x{ext[1]}, larger than the board's {cols}x{rows} "
+                      "(another pattern joins it, or the board's size is not the one given)")
+        return fail(f"not found: {why}", r)
+    tgt, off = placed
+    g = g + np.asarray(off)
+    if tgt != (cols, rows):  # the lattice's first axis runs along the board's rows: turn it
+        g = np.stack([g[:, 1], tgt[0] - 1 - g[:, 0]], axis=-1)
+    # Colours: square (a, b) of the board (between corners (a, b) and (a + 1, b + 1); a, b
+    # from -1) is black when a + b is even, as Checkerboard defines it. Each seen corner
+    # probes half a diagonal step from it towards the square (a - 1, b - 1)... the colour of
+    # square (a - 1, b - 1), whose a + b parity is that of the corner's.
+    agree = _colour_agreement(s, g, q)
+    if agree is None:
+        return fail("not found: the squares' colours cannot be read (too few corners with a diagonal neighbour)", r)
+    if cols == rows and agree < 0.5:
+        # A square board turned by a quarter: the same lattice, the colours swapped when the
+        # side is odd. Turn the labels (right-handedness is kept).
+        g = np.stack([cols - 1 - g[:, 1], g[:, 0]], axis=-1)
+        agree = 1.0 - agree
     if (cols + rows) % 2 == 1:
-        flip = agree < 0.5
+        # The half-turn swaps the colours: they decide it.
+        if agree < 0.5:
+            g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
         agree = max(agree, 1.0 - agree)
     else:
-        flip = (corner(0, 0) @ [1.0, 1.0]) > (corner(cols - 1, rows - 1) @ [1.0, 1.0])
+        # The half-turn keeps the colours; a print with the colours the other way round (white
+        # where Checkerboard has black) is as good. Corner (0, 0) is the end nearer the image's
+        # top-left, as OpenCV leaves it.
+        agree = max(agree, 1.0 - agree)
+        lab = {(int(a), int(b)): p for (a, b), p in zip(g, q, strict=True)}
+        M = np.linalg.lstsq(np.c_[g, np.ones(len(g))], q, rcond=None)[0]
+        c00 = lab.get((0, 0), M[2])
+        c11 = lab.get((cols - 1, rows - 1), M[2] + (cols - 1) * M[0] + (rows - 1) * M[1])
+        if c00 @ [1.0, 1.0] > c11 @ [1.0, 1.0]:
+            g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
     if agree < 0.8:
-        # Labels off by one square (a partial lattice trimmed on the wrong side) put every
-        # probe in a square of the other colour.
-        return fail(f"not found: the corners' labels disagree with the squares' colours ({agree:.0%} agree); "
-                    "part of the board may be hidden")
-    if flip:
-        g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
-    # Sub-pixel refinement with the window chosen for this image.
-    spacing = float(np.mean([np.hypot(*M[0]), np.hypot(*M[1])]))  # pixels between corners
-    r = int(np.clip(round(spacing / 11.0), 2, 5))
-    refined, sig = _saddle_fit(s, pts[idx], r)
+        return fail(f"not found: the corners' labels disagree with the squares' colours ({agree:.0%} agree)", r)
     out = empty.copy()
     sigma = np.full(n_corners, np.nan)
     flat = g[:, 1] * cols + g[:, 0]
-    out[flat] = refined
+    out[flat] = q
     sigma[flat] = sig
     inside = ((out[:, 0] >= 0) & (out[:, 0] <= grey.shape[1] - 1) & (out[:, 1] >= 0)
               & (out[:, 1] <= grey.shape[0] - 1))
     out[~inside] = np.nan
     sigma[~inside] = np.nan
-    bent = _bent_fraction(out.reshape(rows, cols, 2))
-    if bent > 0.1:
-        # A lattice walked wrongly (a skipped or doubled column, as strong fisheye distortion
-        # can cause) bends rows by a whole square; fingers over edge corners bend a few. Say
-        # "not found" rather than return corners with wrong indices.
-        return fail(f"not found: the corner lattice is inconsistent ({bent:.0%} of rows and columns bend by more "
-                    "than half a square; a lens this strong may need the board nearer the image centre)", r)
-    seen = out[np.isfinite(out).all(axis=1)]
-    if len(seen) > 1:
-        d = np.hypot(*(seen[:, None, :] - seen[None, :, :]).transpose(2, 0, 1))
-        np.fill_diagonal(d, np.inf)
-        if d.min() < 0.3 * spacing:
-            # Two labels on one corner: the lattice was walked over something else (text,
-            # clutter). Never return it.
-            return fail("not found: the corner lattice is inconsistent (two labels on one corner)", r)
     found = int(np.isfinite(out).all(axis=1).sum())
     return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)")
+
+
+def _lattice_spacing(g: np.ndarray, p: np.ndarray) -> float:
+    """Median image distance between lattice neighbours."""
+    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
+    d = [np.hypot(*(p[where[(a + da, b + db)]] - p[k])) for k, (a, b) in enumerate(g.tolist())
+         for da, db in ((1, 0), (0, 1)) if (a + da, b + db) in where]
+    return float(np.median(d)) if d else 11.0
+
+
+def _poly_terms(g: np.ndarray) -> np.ndarray:
+    a, b = g[..., 0], g[..., 1]
+    return np.stack([np.ones_like(a), a, b, a * a, a * b, b * b], axis=-1)
+
+
+def _local_fit(g: np.ndarray, p: np.ndarray, centre: tuple[int, int], where: dict, exclude: bool,
+               reach: int = 2) -> np.ndarray | None:
+    """Coefficients (6, 2) of the quadratic map lattice -> image fitted on the corners within
+    ``reach`` of ``centre`` (lattice coordinates relative to it; without the centre itself if
+    ``exclude``); None where they do not pin it down."""
+    a0, b0 = centre
+    ks = [where[(a0 + da, b0 + db)] for da in range(-reach, reach + 1) for db in range(-reach, reach + 1)
+          if (a0 + da, b0 + db) in where and not (exclude and da == 0 and db == 0)]
+    if len(ks) < 4:
+        return None
+    rel = (g[ks] - np.array([a0, b0])).astype(np.float64)
+    if np.ptp(rel[:, 0]) < 1 or np.ptp(rel[:, 1]) < 1:
+        return None
+    quadratic = len(ks) >= 7 and np.ptp(rel[:, 0]) >= 2 and np.ptp(rel[:, 1]) >= 2
+    if not quadratic:  # an affine map from three or more corners around it, not all in a line
+        A = _poly_terms(rel)[:, :3]
+        coef, *_ = np.linalg.lstsq(A, p[ks], rcond=None)
+        return np.vstack([coef, np.zeros((3, 2))])
+    A = _poly_terms(rel)
+    coef, *_ = np.linalg.lstsq(A, p[ks], rcond=None)
+    return coef
+
+
+def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
+    """Which corners agree with their lattice neighbours: each corner against the quadratic
+    map (lattice to image) fitted on the corners within two steps of it, itself left out. A
+    quadratic follows perspective and lens distortion over a few squares; a corner placed on
+    something else (a finger's edge, a second pattern, text) misses it by a fraction of a
+    square. The worst offenders go first, round by round, so that one wrong corner does not
+    condemn its neighbours. Where fewer than seven neighbours span the neighbourhood, an
+    affine map from four or more is the test; a corner with fewer cannot be checked and goes
+    (a label that cannot be checked is not returned)."""
+    keep = np.ones(len(g), dtype=bool)
+    tol = max(0.6, 0.08 * spacing)
+    for _ in range(8):
+        idx = np.flatnonzero(keep)
+        where = {(int(a), int(b)): k for k, (a, b) in zip(idx, g[idx], strict=True)}
+        res = np.zeros(len(g))
+        for k in idx:
+            coef = _local_fit(g, q, (int(g[k, 0]), int(g[k, 1])), where, exclude=True)
+            res[k] = np.inf if coef is None else np.hypot(*(coef[0] - q[k]))
+        bad = res > tol
+        if not bad.any():
+            break
+        # Drop the corners that are the worst within their own neighbourhood.
+        drop = []
+        for k in np.flatnonzero(bad):
+            a, b = g[k]
+            near = [where[(a + da, b + db)] for da in range(-2, 3) for db in range(-2, 3)
+                    if (a + da, b + db) in where]
+            if res[k] >= max(res[j] for j in near):
+                drop.append(k)
+        keep[drop] = False
+    return keep
+
+
+def _largest_part(g: np.ndarray) -> np.ndarray:
+    """Indices of the largest group of lattice corners linked to each other as neighbours
+    (diagonals included). Two groups apart by a whole hidden row or column are not joined:
+    nothing between them checks that the walk kept its count across the gap."""
+    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
+    label = -np.ones(len(g), dtype=np.int64)
+    best: list[int] = []
+    for k0 in range(len(g)):
+        if label[k0] >= 0:
+            continue
+        label[k0] = k0
+        comp, stack = [k0], [k0]
+        while stack:
+            k = stack.pop()
+            a, b = g[k]
+            for da in range(-1, 2):
+                for db in range(-1, 2):
+                    j = where.get((int(a + da), int(b + db)))
+                    if j is not None and label[j] < 0:
+                        label[j] = k0
+                        comp.append(j)
+                        stack.append(j)
+        if len(comp) > len(best):
+            best = comp
+    return np.sort(np.array(best, dtype=np.int64))
+
+
+def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float) -> dict[tuple[int, int], str]:
+    """What lies beyond each side of the lattice: ``"border"`` (the row of outer squares, then
+    the sheet's plain margin), ``"more"`` (the checker pattern goes on: corners were missed
+    there) or ``"unknown"`` (outside the image, hidden, or too faint to say).
+
+    Along a side, half a square out from the last corners lie the board's outer squares,
+    alternating black and white; one and a half squares out lies the margin, uniform and as
+    light as the white squares, where the board ends, or squares alternating the other way
+    where it does not. Positions come from the quadratic lattice map fitted near each sample.
+    Keys: (axis, -1) for the low side of lattice axis ``axis``, (axis, +1) for the high side."""
+    H, W = s.shape
+    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
+    ext = g.max(axis=0)
+    out: dict[tuple[int, int], str] = {}
+    for axis in (0, 1):
+        other = 1 - axis
+        for side in (-1, 1):
+            edge = 0 if side < 0 else int(ext[axis])
+            near, far = [], []
+            for j in range(int(ext[other])):
+                c = [0, 0]
+                c[axis], c[other] = edge, j
+                coef = _local_fit(g, q, (c[0], c[1]), where, exclude=False, reach=2)
+                if coef is None:
+                    near.append(np.nan)
+                    far.append(np.nan)
+                    continue
+                vals = []
+                for depth in (0.5, 1.5):
+                    rel = [0.0, 0.0]
+                    rel[axis], rel[other] = side * depth, 0.5
+                    pt = _poly_terms(np.array(rel)) @ coef
+                    inside = 2 <= pt[0] <= W - 3 and 2 <= pt[1] <= H - 3
+                    vals.append(float(_sample(s, np.array([[pt[0]]]), np.array([[pt[1]]]), "bilinear")[0, 0])
+                                if inside else np.nan)
+                near.append(vals[0])
+                far.append(vals[1])
+            near_a, far_a = np.array(near), np.array(far)
+            ok = np.isfinite(near_a) & np.isfinite(far_a)
+            if ok.sum() < 2:
+                out[(axis, side)] = "unknown"
+                continue
+            sign = np.where(np.arange(len(near_a)) % 2 == 0, 1.0, -1.0)[ok]
+            n_, f_ = near_a[ok], far_a[ok]
+            a_near = float(np.mean(sign * (n_ - n_.mean())))
+            a_far = float(np.mean(sign * (f_ - f_.mean())))
+            contrast = float(n_.max() - n_.min())
+            if abs(a_near) < 0.1 * max(contrast, 1e-9) or contrast < 0.1:
+                out[(axis, side)] = "unknown"
+            elif a_far * a_near < 0 and abs(a_far) > 0.4 * abs(a_near):
+                out[(axis, side)] = "more"
+            else:
+                white = float(np.mean(np.sort(n_)[len(n_) // 2:]))
+                black = float(np.mean(np.sort(n_)[:max(len(n_) // 2, 1)]))
+                plain = abs(a_far) < 0.25 * abs(a_near)
+                light = float(np.mean(f_)) > black + 0.7 * (white - black)
+                out[(axis, side)] = "border" if plain and light else "unknown"
+    return out
+
+
+def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[int, int] | None, str]:
+    """Where a lattice of ``ext`` corners sits in a board of ``tgt`` corners, from the evidence
+    at its sides: a lattice as long as the board needs no border but must not have the
+    pattern going on past either end; a shorter one is placed against the side where the
+    board's border is seen, the other side showing no border. Returns (offset, "") or (None,
+    why not)."""
+    off = [0, 0]
+    names = ("columns", "rows")
+    for axis in (0, 1):
+        lo, hi = sides[(axis, -1)], sides[(axis, 1)]
+        n, want = int(ext[axis]), int(tgt[axis])
+        if n == want:
+            if "more" in (lo, hi) and "trimmed" not in (lo, hi):
+                return None, (f"the lattice has the board's {want} {names[axis]} but the pattern goes on past one "
+                              "end (a row of corners missed there, another seen elsewhere)")
+            continue
+        if lo == "border" and hi != "border":
+            off[axis] = 0
+        elif hi == "border" and lo != "border":
+            off[axis] = want - n
+        elif lo == "border" and hi == "border":
+            return None, (f"the lattice has {n} of the board's {want} {names[axis]} between two borders "
+                          "(another pattern, or a board of another size)")
+        else:
+            return None, (f"only {n} of the board's {want} {names[axis]} are seen and neither end shows the "
+                          "board's border, so their labels are not fixed (part of the board is hidden or "
+                          "outside the image)")
+    return (off[0], off[1]), ""
+
+
+def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | None:
+    """Fraction of the probed squares whose shade matches Checkerboard's colours for the
+    labels ``g``: from each corner (a, b) whose diagonal neighbour (a + 1, b + 1) is seen,
+    half a diagonal step the other way lies in square (a - 1, b - 1), black when a + b is
+    even. Local probes: perspective and distortion cannot move them off their square."""
+    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
+    pairs = [(k, where[(a + 1, b + 1)]) for k, (a, b) in enumerate(g.tolist()) if (a + 1, b + 1) in where]
+    if len(pairs) < 2:
+        return None
+    k, j = np.array(pairs).T
+    probe = q[k] + 0.5 * (q[k] - q[j])
+    shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
+    mid = 0.5 * (shade.max() + shade.min())
+    return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
 
 
 def _bent_fraction(grid: np.ndarray) -> float:

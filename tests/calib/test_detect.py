@@ -103,3 +103,49 @@ def test_fisheye_views_are_found_right_or_not_at_all():
             else:
                 assert det.message.startswith("not found")
     assert found >= 13  # measured: 13 of 24 (the rest: too small, or bent beyond the walk)
+
+
+def test_stress_sample_never_a_wrong_board():
+    # Issue 21 items 2 and 3 on a sample of the rendered stress corpus (benchmarks/detect_corpus.py
+    # runs thousands): tilted, blurred, noisy, JPEG, occluded, partial and cluttered views
+    # through pinhole, barrel, pincushion and fisheye lenses. No returned corner carries
+    # another corner's label (none lies a third of a square or more from the true corner of
+    # its label, under the labellings the view allows), and boards a person can see are found.
+    # The issue's stricter 1 px bound is not met yet: seed 1 (12x9 board, 15 px squares, blur
+    # 0.8 px, noise) returns one corner 1.9 px off; the test holds that count at one. Found:
+    # 17 of the 22 eligible views (the issue asks 99 %; not met, benchmarks/notes.md).
+    from benchmarks.detect_corpus import eligible, score
+    from camkit.render.stress import stress_view
+
+    mislabelled, far, seen, found = [], 0, 0, 0
+    for seed in range(60):
+        v = stress_view(seed, megapixels=(0.1, 0.3))
+        det = detect_corners(v.image, v.board)
+        if det.found:
+            bad, d = score(v, det.corners)
+            far += bad
+            if (d > v.square_px / 3).any():
+                mislabelled.append((seed, det.message))
+        if eligible(v):
+            seen += 1
+            found += det.found
+    assert not mislabelled
+    assert far <= 1
+    assert seen >= 15 and found >= 0.75 * seen, (found, seen)
+
+
+@pytest.mark.parametrize("name", ["boofcv_bumblebee", "boofcv_sony", "udacity_carnd", "boofcv_fisheye",
+                                  "opencv_right"])
+def test_real_sets_against_opencv(shared_data, name):
+    # Issue 21 item 4 on the real sets (benchmarks/detect_real.py prints them all): every
+    # board camkit returns carries OpenCV's labels up to the board's symmetry (no corner
+    # nearer another corner's place), and its corners agree with OpenCV's within 0.15 px
+    # median. Measured: found / OpenCV found = 22/22, 13/13, 18/18 (+2 OpenCV missed),
+    # 20/26, 11/13; medians 0.090, 0.064, 0.075, 0.135, 0.090 px.
+    from benchmarks.detect_real import run_set
+
+    r = run_set(shared_data / "real_boards" / name)
+    assert not r.wrong, r.wrong
+    assert r.median_px <= 0.15
+    minimum = {"boofcv_fisheye": 20, "opencv_right": 11}.get(name, r.reference_found)
+    assert r.found - r.extra >= minimum, r.missed
