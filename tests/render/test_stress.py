@@ -48,7 +48,7 @@ def test_truth_matches_the_renderer_and_seeds_repeat():
     assert len(vis) and ((vis >= 0) & (vis <= [v.camera.width - 1, v.camera.height - 1])).all()
     # A clean render of the same board and camera puts the corners where the truth says.
     b = Checkerboard(5, 4, 0.03)
-    img, truth = render_checkerboard(CAM, Pose(np.eye(3), [-0.05, -0.04, 0.6]), b)
+    _, truth = render_checkerboard(CAM, Pose(np.eye(3), [-0.05, -0.04, 0.6]), b)
     assert np.allclose(acceptable_labellings(b, truth.corners_px)[0], np.arange(20))
 
 
