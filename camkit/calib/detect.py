@@ -457,10 +457,7 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
     g = g + np.asarray(off)
     if tgt != (cols, rows):  # the lattice's first axis runs along the board's rows: turn it
         g = np.stack([g[:, 1], tgt[0] - 1 - g[:, 0]], axis=-1)
-    # Colours: square (a, b) of the board (between corners (a, b) and (a + 1, b + 1); a, b
-    # from -1) is black when a + b is even, as Checkerboard defines it. Each seen corner
-    # probes half a diagonal step from it towards the square (a - 1, b - 1)... the colour of
-    # square (a - 1, b - 1), whose a + b parity is that of the corner's.
+    # Colours (see _colour_agreement): each probe reads a square whose colour the labels predict.
     agree = _colour_agreement(s, g, q)
     if agree is None:
         return fail("not found: the squares' colours cannot be read (too few corners with a diagonal neighbour)", r)

@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
-from camkit._validate import as_positive_float
+from camkit._validate import as_points, as_positive_float
 from camkit.calib.targets import Checkerboard
-from camkit.errors import ParameterError
+from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens.base import CameraModel
@@ -94,11 +94,16 @@ def acceptable_labellings(board: Checkerboard, corners_px: np.ndarray) -> tuple[
     symmetries whose labels are right-handed in the image and keep square (0, 0)'s colour black
     as :class:`Checkerboard` defines it; where none does (a colour-inverted print of a board
     whose colours no turn restores), the right-handed ones that keep the colours consistent."""
+    if not isinstance(board, Checkerboard):
+        raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
     cols, rows = board.inner_cols, board.inner_rows
+    pts = as_points(corners_px, 2, "corners_px", nan_rows=True)
+    if pts.shape != (cols * rows, 2) or not np.isfinite(pts).all(axis=1).any():
+        raise ShapeError(f"corners_px: expected ({cols * rows}, 2) positions of the board's corners, some finite, "
+                         f"got shape {pts.shape}")
     grid = np.arange(cols * rows).reshape(rows, cols)
     a, b = np.meshgrid(np.arange(-1, cols), np.arange(-1, rows))
     black = (a + b) % 2 == 0  # squares (b + 1, a + 1), as the renderer colours them
-    pts = np.asarray(corners_px, dtype=np.float64)
     right, keep = [], []
     for op in _lattice_ops(rows, cols):
         perm = op(grid)
@@ -277,8 +282,12 @@ def stress_view(seed: int, *, megapixels: tuple[float, float] = (0.1, 24.0),
 
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ParameterError(f"seed: expected a non-negative integer, got {seed!r}")
-    lo_mp, hi_mp = (as_positive_float(v, "megapixels") for v in megapixels)
-    lo_sq, hi_sq = (as_positive_float(v, "square_px") for v in square_px)
+    bounds = []
+    for value, name in ((megapixels, "megapixels"), (square_px, "square_px")):
+        if not isinstance(value, (tuple, list)) or len(value) != 2:
+            raise ParameterError(f"{name}: expected (low, high), got {value!r}")
+        bounds.append([as_positive_float(v, name) for v in value])
+    (lo_mp, hi_mp), (lo_sq, hi_sq) = bounds
     if lo_mp > hi_mp or lo_sq > hi_sq:
         raise ParameterError(f"megapixels, square_px: expected (low, high) with low <= high, got {megapixels}, "
                              f"{square_px}")

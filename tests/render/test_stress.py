@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from camkit.calib import Checkerboard
-from camkit.errors import ParameterError
+from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens import Pinhole
@@ -68,3 +68,15 @@ def test_bad_arguments():
         stress_view(-1)
     with pytest.raises(ParameterError, match="low <= high"):
         stress_view(0, megapixels=(2.0, 1.0))
+    for bad in (3.0, (1.0,), (1.0, 2.0, 3.0)):
+        with pytest.raises(ParameterError, match=r"megapixels: expected \(low, high\)"):
+            stress_view(0, megapixels=bad)
+    with pytest.raises(ParameterError, match="square_px: expected a positive"):
+        stress_view(0, square_px=(0.0, 10.0))
+    b = Checkerboard(4, 3, 0.03)
+    with pytest.raises(ParameterError, match="board: expected a Checkerboard"):
+        acceptable_labellings((4, 3), np.zeros((12, 2)))
+    with pytest.raises(ShapeError, match=r"corners_px: expected \(12, 2\)"):
+        acceptable_labellings(b, np.zeros((11, 2)))
+    with pytest.raises(ShapeError, match="corners_px: expected"):
+        acceptable_labellings(b, np.full((12, 2), np.nan))
