@@ -7,6 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from camkit._kernels import detect as _kd
+from camkit._kernels import lattice as _kl
 from camkit._validate import as_image
 from camkit.calib.targets import Checkerboard
 from camkit.errors import ParameterError
@@ -113,137 +114,29 @@ def _edge_directions(v: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([np.cos(a), np.sin(a)], -1), np.stack([np.cos(b), np.sin(b)], -1)], axis=1)
 
 
-def _predict(L: dict[tuple[int, int], int], pts: np.ndarray, a: int, b: int) -> tuple[np.ndarray, float] | None:
-    """Where lattice position (a, b) should be, from the members near it: a quadratic map
-    (lattice to image) where seven or more members within two steps span both axes, an affine
-    one where three or more do, else a straight continuation of a row or column. Returns the
-    prediction and the local step in pixels."""
-    near = [(a + da, b + db) for da in range(-2, 3) for db in range(-2, 3) if (a + da, b + db) in L]
-    if len(near) >= 3:
-        rel = np.array(near, dtype=np.float64) - (a, b)
-        if np.ptp(rel[:, 0]) >= 1 and np.ptp(rel[:, 1]) >= 1:
-            P = pts[[L[n] for n in near]]
-            terms = _poly_terms(rel) if (len(near) >= 7 and np.ptp(rel[:, 0]) >= 2 and np.ptp(rel[:, 1]) >= 2) \
-                else _poly_terms(rel)[:, :3]
-            coef, *_ = np.linalg.lstsq(terms, P, rcond=None)
-            step = float(np.min(np.hypot(*coef[1:3].T)))
-            return coef[0], step
-    for da, db in ((1, 0), (-1, 0), (0, 1), (0, -1)):
-        p1, p2 = L.get((a - da, b - db)), L.get((a - 2 * da, b - 2 * db))
-        if p1 is not None and p2 is not None:
-            d = pts[p1] - pts[p2]
-            return pts[p1] + d, float(np.hypot(*d))
-    return None
-
-
-def _grow(pts: np.ndarray, dirs: np.ndarray, tree, seed: int, spacing: np.ndarray,
-          used: np.ndarray, img: np.ndarray, contrast: float) -> dict[tuple[int, int], int]:
-    """A lattice grown from one corner: its four neighbours along its own edge directions, then
-    position after position predicted from the members near it (perspective and lens
-    distortion change the step and the direction only a little from one square to the next),
-    each taking the unused candidate nearest the prediction within a third of the local step."""
-    L: dict[tuple[int, int], int] = {(0, 0): seed}
-    taken = {seed}
-    for (ax, sg), pos in zip(((0, 1.0), (0, -1.0), (1, 1.0), (1, -1.0)), ((1, 0), (-1, 0), (0, 1), (0, -1)),
-                             strict=True):
-        u = sg * dirs[seed, ax]
-        d, j = tree.query(pts[seed], k=min(9, len(pts)))
-        best = None
-        for dist, k in zip(np.atleast_1d(d)[1:], np.atleast_1d(j)[1:], strict=True):
-            if k in taken or used[k]:
-                continue
-            w = (pts[k] - pts[seed]) / dist
-            if w @ u > np.cos(np.radians(25)) and 0.4 * spacing[seed] < dist < 2.5 * spacing[seed]:
-                best = k
-                break
-        if best is None:
-            return L
-        L[pos] = int(best)
-        taken.add(int(best))
-    # Each link must run along an edge between a black and a white square: across its middle
-    # the shade changes. A diagonal link (which also joins two corners, and would shear the
-    # labels) crosses the middle of one square, where it does not.
-    a = pts[seed]
-    b = pts[[L[p] for p in ((1, 0), (-1, 0), (0, 1), (0, -1))]]
-    d = b - a
-    normal = np.stack([-d[:, 1], d[:, 0]], axis=-1) * 0.2
-    mid = a + 0.5 * d
-    side = _sample(img, np.concatenate([mid[:, :1] + normal[:, :1], mid[:, :1] - normal[:, :1]]),
-                   np.concatenate([mid[:, 1:] + normal[:, 1:], mid[:, 1:] - normal[:, 1:]]), "bilinear").ravel()
-    if (np.abs(side[:4] - side[4:]) < 0.4 * contrast).any():
-        return {(0, 0): seed}
-    # The seed's square of nine: each diagonal neighbour where the two edge neighbours put it
-    # (a corner whose edge neighbours were misread, e.g. a diagonal taken for an edge
-    # neighbour under strong perspective, fails here and seeds nothing).
-    found_diag = 0
-    for da, db in ((1, 1), (1, -1), (-1, 1), (-1, -1)):
-        where = pts[L[(da, 0)]] + pts[L[(0, db)]] - pts[seed]
-        step = min(np.hypot(*(pts[L[(da, 0)]] - pts[seed])), np.hypot(*(pts[L[(0, db)]] - pts[seed])))
-        dist, k = tree.query(where, k=1)
-        if dist <= step / 3.0 and k not in taken and not used[k]:
-            L[(da, db)] = int(k)
-            taken.add(int(k))
-            found_diag += 1
-    if found_diag < 3:
-        return {(0, 0): seed}
-    grew = True
-    tried: dict[tuple[int, int], int] = {}
-    while grew:
-        grew = False
-        frontier = {(a + da, b + db) for (a, b) in L for da, db in ((1, 0), (-1, 0), (0, 1), (0, -1))} - set(L)
-        claims: dict[int, tuple[float, tuple[int, int]]] = {}
-        for pos in frontier:
-            n_near = sum((pos[0] + da, pos[1] + db) in L for da in range(-2, 3) for db in range(-2, 3))
-            if tried.get(pos) == n_near:
-                continue  # nothing new to predict it from
-            tried[pos] = n_near
-            pred = _predict(L, pts, *pos)
-            if pred is None:
-                continue
-            where, step = pred
-            dist, k = tree.query(where, k=1)
-            if dist > step / 3.0 or k in taken or used[k]:
-                continue
-            if k not in claims or dist < claims[k][0]:
-                claims[int(k)] = (float(dist), pos)
-        for k, (_, pos) in claims.items():
-            if pos not in L:
-                L[pos] = k
-                taken.add(k)
-                grew = True
-    return L
-
-
-def _assemble(pts: np.ndarray, dirs: np.ndarray, n_corners: int, img: np.ndarray,
+def _assemble(pts: np.ndarray, dirs: np.ndarray, n_corners: int, max_side: int, img: np.ndarray,
               contrast: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The corners' lattice: grown (:func:`_grow`) from the corners in turn, most central
-    first among those with four neighbours along their edges, keeping the largest; corners in
-    a grown lattice seed no other. Returns (indices into pts, lattice coordinates from 0)."""
-    from scipy.spatial import cKDTree
-
-    n = len(pts)
-    tree = cKDTree(pts)
-    d, _ = tree.query(pts, k=min(5, n))
-    spacing = np.median(np.atleast_2d(d)[:, 1:], axis=1) if n > 1 else np.ones(n)
-    used = np.zeros(n, dtype=bool)
-    best: dict[tuple[int, int], int] = {}
-    order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T))
-    for seed in order.tolist():
-        if used[seed]:
-            continue
-        L = _grow(pts, dirs, tree, seed, spacing, used, img, float(contrast[seed]))
-        if len(L) < 5:
-            continue
-        used[list(L.values())] = True
-        if len(L) > len(best):
-            best = L
-        if len(best) >= n_corners or used.mean() > 0.9:
-            break
-    if not best:
+    """The corners' lattice: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
+    turn, most central first, keeping the largest; corners in a grown lattice seed no other.
+    Growth stays within ``max_side + 2`` positions of its seed either way (a lattice that
+    reaches that far is longer than the board, and is refused later as such). Returns (indices
+    into pts, lattice coordinates from 0)."""
+    order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T), kind="stable")
+    side = 2 * (max_side + 2) + 1
+    best = np.empty((side, side), dtype=np.int64)
+    n = _kl.assemble(np.ascontiguousarray(pts), np.ascontiguousarray(dirs), img, np.ascontiguousarray(contrast),
+                     order, n_corners, best)
+    if n == 0:
         return np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.int64)
-    g = np.array(list(best.keys()), dtype=np.int64)
-    idx = np.array(list(best.values()), dtype=np.int64)
-    return idx, g - g.min(axis=0)
+    g = np.argwhere(best >= 0)
+    return best[g[:, 0], g[:, 1]], g - g.min(axis=0)
+
+
+def _grid(g: np.ndarray, margin: int = 0) -> np.ndarray:
+    """Lattice coordinates (from 0) as a grid of indices into them, -1 where empty."""
+    G = np.full(tuple(g.max(axis=0) + 1 + margin) if len(g) else (1, 1), -1, dtype=np.int64)
+    G[g[:, 0], g[:, 1]] = np.arange(len(g))
+    return G
 
 
 def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
@@ -386,7 +279,7 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
         pts, v, sym = pts[keep], v[keep], sym[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
-    idx, g = _assemble(pts, _edge_directions(v), n_corners, s, v.max(axis=1) - v.min(axis=1))
+    idx, g = _assemble(pts, _edge_directions(v), n_corners, max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
     if len(idx) < 4:
         return fail("not found: the corners form no lattice")
     spacing = _lattice_spacing(g, pts[idx])
@@ -499,38 +392,14 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
 
 def _lattice_spacing(g: np.ndarray, p: np.ndarray) -> float:
     """Median image distance between lattice neighbours."""
-    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
-    d = [np.hypot(*(p[where[(a + da, b + db)]] - p[k])) for k, (a, b) in enumerate(g.tolist())
-         for da, db in ((1, 0), (0, 1)) if (a + da, b + db) in where]
-    return float(np.median(d)) if d else 11.0
-
-
-def _poly_terms(g: np.ndarray) -> np.ndarray:
-    a, b = g[..., 0], g[..., 1]
-    return np.stack([np.ones_like(a), a, b, a * a, a * b, b * b], axis=-1)
-
-
-def _local_fit(g: np.ndarray, p: np.ndarray, centre: tuple[int, int], where: dict, exclude: bool,
-               reach: int = 2) -> np.ndarray | None:
-    """Coefficients (6, 2) of the quadratic map lattice -> image fitted on the corners within
-    ``reach`` of ``centre`` (lattice coordinates relative to it; without the centre itself if
-    ``exclude``); None where they do not pin it down."""
-    a0, b0 = centre
-    ks = [where[(a0 + da, b0 + db)] for da in range(-reach, reach + 1) for db in range(-reach, reach + 1)
-          if (a0 + da, b0 + db) in where and not (exclude and da == 0 and db == 0)]
-    if len(ks) < 4:
-        return None
-    rel = (g[ks] - np.array([a0, b0])).astype(np.float64)
-    if np.ptp(rel[:, 0]) < 1 or np.ptp(rel[:, 1]) < 1:
-        return None
-    quadratic = len(ks) >= 7 and np.ptp(rel[:, 0]) >= 2 and np.ptp(rel[:, 1]) >= 2
-    if not quadratic:  # an affine map from three or more corners around it, not all in a line
-        A = _poly_terms(rel)[:, :3]
-        coef, *_ = np.linalg.lstsq(A, p[ks], rcond=None)
-        return np.vstack([coef, np.zeros((3, 2))])
-    A = _poly_terms(rel)
-    coef, *_ = np.linalg.lstsq(A, p[ks], rcond=None)
-    return coef
+    G = _grid(g, margin=1)
+    here = G[:-1, :-1]
+    d = []
+    for there in (G[1:, :-1], G[:-1, 1:]):
+        both = (here >= 0) & (there >= 0)
+        d.append(np.hypot(*(p[there[both]] - p[here[both]]).T))
+    d = np.concatenate(d)
+    return float(np.median(d)) if d.size else 11.0
 
 
 def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
@@ -541,28 +410,11 @@ def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     square. The worst offenders go first, round by round, so that one wrong corner does not
     condemn its neighbours. Where fewer than seven neighbours span the neighbourhood, an
     affine map from four or more is the test; a corner with fewer cannot be checked and goes
-    (a label that cannot be checked is not returned)."""
+    (a label that cannot be checked is not returned). The tolerance is 8 % of the spacing,
+    0.6 px at least."""
     keep = np.ones(len(g), dtype=bool)
-    tol = max(0.6, 0.08 * spacing)
-    for _ in range(8):
-        idx = np.flatnonzero(keep)
-        where = {(int(a), int(b)): k for k, (a, b) in zip(idx, g[idx], strict=True)}
-        res = np.zeros(len(g))
-        for k in idx:
-            coef = _local_fit(g, q, (int(g[k, 0]), int(g[k, 1])), where, exclude=True)
-            res[k] = np.inf if coef is None else np.hypot(*(coef[0] - q[k]))
-        bad = res > tol
-        if not bad.any():
-            break
-        # Drop the corners that are the worst within their own neighbourhood.
-        drop = []
-        for k in np.flatnonzero(bad):
-            a, b = g[k]
-            near = [where[(a + da, b + db)] for da in range(-2, 3) for db in range(-2, 3)
-                    if (a + da, b + db) in where]
-            if res[k] >= max(res[j] for j in near):
-                drop.append(k)
-        keep[drop] = False
+    if len(g):
+        _kl.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), max(0.6, 0.08 * spacing), keep)
     return keep
 
 
@@ -570,27 +422,14 @@ def _largest_part(g: np.ndarray) -> np.ndarray:
     """Indices of the largest group of lattice corners linked to each other as neighbours
     (diagonals included). Two groups apart by a whole hidden row or column are not joined:
     nothing between them checks that the walk kept its count across the gap."""
-    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
-    label = -np.ones(len(g), dtype=np.int64)
-    best: list[int] = []
-    for k0 in range(len(g)):
-        if label[k0] >= 0:
-            continue
-        label[k0] = k0
-        comp, stack = [k0], [k0]
-        while stack:
-            k = stack.pop()
-            a, b = g[k]
-            for da in range(-1, 2):
-                for db in range(-1, 2):
-                    j = where.get((int(a + da), int(b + db)))
-                    if j is not None and label[j] < 0:
-                        label[j] = k0
-                        comp.append(j)
-                        stack.append(j)
-        if len(comp) > len(best):
-            best = comp
-    return np.sort(np.array(best, dtype=np.int64))
+    from scipy import ndimage
+
+    G = _grid(g)
+    labels, n = ndimage.label(G >= 0, structure=np.ones((3, 3), dtype=bool))
+    if n == 0:
+        return np.zeros(0, dtype=np.int64)
+    sizes = np.bincount(labels.ravel())[1:]
+    return np.sort(G[labels == 1 + int(np.argmax(sizes))])
 
 
 def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float) -> dict[tuple[int, int], str]:
@@ -603,34 +442,15 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     light as the white squares, where the board ends, or squares alternating the other way
     where it does not. Positions come from the quadratic lattice map fitted near each sample.
     Keys: (axis, -1) for the low side of lattice axis ``axis``, (axis, +1) for the high side."""
-    H, W = s.shape
-    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
+    G = _grid(g)
     ext = g.max(axis=0)
+    qc = np.ascontiguousarray(q, dtype=np.float64)
     out: dict[tuple[int, int], str] = {}
     for axis in (0, 1):
-        other = 1 - axis
         for side in (-1, 1):
-            edge = 0 if side < 0 else int(ext[axis])
-            near, far = [], []
-            for j in range(int(ext[other])):
-                c = [0, 0]
-                c[axis], c[other] = edge, j
-                coef = _local_fit(g, q, (c[0], c[1]), where, exclude=False, reach=2)
-                if coef is None:
-                    near.append(np.nan)
-                    far.append(np.nan)
-                    continue
-                vals = []
-                for depth in (0.5, 1.5):
-                    rel = [0.0, 0.0]
-                    rel[axis], rel[other] = side * depth, 0.5
-                    pt = _poly_terms(np.array(rel)) @ coef
-                    inside = 2 <= pt[0] <= W - 3 and 2 <= pt[1] <= H - 3
-                    vals.append(float(_sample(s, np.array([[pt[0]]]), np.array([[pt[1]]]), "bilinear")[0, 0])
-                                if inside else np.nan)
-                near.append(vals[0])
-                far.append(vals[1])
-            near_a, far_a = np.array(near), np.array(far)
+            near_a = np.empty(int(ext[1 - axis]))
+            far_a = np.empty_like(near_a)
+            _kl.border_samples(G, qc, s, axis, side, near_a, far_a)
             ok = np.isfinite(near_a) & np.isfinite(far_a)
             if ok.sum() < 2:
                 out[(axis, side)] = "unknown"
@@ -688,13 +508,15 @@ def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | No
     labels ``g``: from each corner (a, b) whose diagonal neighbour (a + 1, b + 1) is seen,
     half a diagonal step the other way lies in square (a - 1, b - 1), black when a + b is
     even. Local probes: perspective and distortion cannot move them off their square."""
-    where = {(int(a), int(b)): k for k, (a, b) in enumerate(g)}
-    pairs = [(k, where[(a + 1, b + 1)]) for k, (a, b) in enumerate(g.tolist()) if (a + 1, b + 1) in where]
-    if len(pairs) < 2:
+    G = _grid(g - g.min(axis=0), margin=1)
+    here, diag = G[:-1, :-1], G[1:, 1:]
+    both = (here >= 0) & (diag >= 0)
+    if both.sum() < 2:
         return None
-    k, j = np.array(pairs).T
-    probe = q[k] + 0.5 * (q[k] - q[j])
-    shade = _sample(s, probe[:, :1], probe[:, 1:], "bilinear").ravel()
+    k, j = here[both], diag[both]
+    probe = np.ascontiguousarray(q[k] + 0.5 * (q[k] - q[j]), dtype=np.float64)
+    shade = np.empty(len(probe))
+    _kl.bilinear_points(s, probe, shade)
     mid = 0.5 * (shade.max() + shade.min())
     return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
 

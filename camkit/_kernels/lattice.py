@@ -1,0 +1,369 @@
+"""Kernels for the checkerboard's lattice: growing it from a seed corner, checking each corner
+against its neighbours, reading what lies past its sides.
+
+A lattice lives in a grid ``G`` of candidate indices (-1 where empty), ``G[a, b]`` holding the
+corner at lattice position (a, b). Local maps from lattice to image are the quadratic (or, with
+too few neighbours, affine) polynomials of ``calib.detect``: terms 1, a, b, a^2, ab, b^2 in
+lattice coordinates relative to the position being predicted or checked.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+_COS25 = math.cos(math.radians(25.0))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def bilinear(img: np.ndarray, x: float, y: float) -> float:  # pragma: no cover - numba
+    """Bilinear sample at (x, y), pixel centres at integers, edge pixels replicated."""
+    H, W = img.shape
+    fx, fy = math.floor(x), math.floor(y)
+    tx, ty = x - fx, y - fy
+    x0 = min(max(int(fx), 0), W - 1)
+    x1 = min(max(int(fx) + 1, 0), W - 1)
+    y0 = min(max(int(fy), 0), H - 1)
+    y1 = min(max(int(fy) + 1, 0), H - 1)
+    top = img[y0, x0] * (1.0 - tx) + img[y0, x1] * tx
+    bot = img[y1, x0] * (1.0 - tx) + img[y1, x1] * tx
+    return top * (1.0 - ty) + bot * ty
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def bilinear_points(img: np.ndarray, xy: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out[i] = bilinear(img, *xy[i])``."""
+    for i in range(xy.shape[0]):
+        out[i] = bilinear(img, xy[i, 0], xy[i, 1])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def local_fit(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclude: bool, min_count: int,
+              coef: np.ndarray) -> int:  # pragma: no cover - numba
+    """Fit the map lattice -> image on the members of ``G`` within ``reach`` of (a, b) (without
+    (a, b) itself if ``exclude``), in coordinates relative to (a, b). Writes the (6, 2)
+    coefficients into ``coef`` (the quadratic terms zero for an affine fit) and returns 2 for a
+    quadratic fit (seven or more members spanning two steps on both axes), 1 for an affine one
+    (``min_count`` or more members spanning a step on both axes), 0 where they do not pin a map
+    down."""
+    S0, S1 = G.shape
+    m = 0
+    rel = np.empty(((2 * reach + 1) ** 2, 2))
+    P = np.empty(((2 * reach + 1) ** 2, 2))
+    lo_a, hi_a, lo_b, hi_b = reach + 1, -reach - 1, reach + 1, -reach - 1
+    for da in range(-reach, reach + 1):
+        for db in range(-reach, reach + 1):
+            if exclude and da == 0 and db == 0:
+                continue
+            aa, bb = a + da, b + db
+            if aa < 0 or bb < 0 or aa >= S0 or bb >= S1:
+                continue
+            k = G[aa, bb]
+            if k < 0:
+                continue
+            rel[m, 0] = da
+            rel[m, 1] = db
+            P[m, 0] = pts[k, 0]
+            P[m, 1] = pts[k, 1]
+            lo_a, hi_a = min(lo_a, da), max(hi_a, da)
+            lo_b, hi_b = min(lo_b, db), max(hi_b, db)
+            m += 1
+    if m < min_count or hi_a - lo_a < 1 or hi_b - lo_b < 1:
+        return 0
+    quadratic = m >= 7 and hi_a - lo_a >= 2 and hi_b - lo_b >= 2
+    nt = 6 if quadratic else 3
+    A = np.empty((m, nt))
+    for i in range(m):
+        da, db = rel[i, 0], rel[i, 1]
+        A[i, 0] = 1.0
+        A[i, 1] = da
+        A[i, 2] = db
+        if quadratic:
+            A[i, 3] = da * da
+            A[i, 4] = da * db
+            A[i, 5] = db * db
+    sol = np.linalg.lstsq(A, np.ascontiguousarray(P[:m]))[0]
+    coef[:] = 0.0
+    coef[:nt] = sol
+    return 2 if quadratic else 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _nearest(pts: np.ndarray, x: float, y: float) -> tuple[int, float]:  # pragma: no cover - numba
+    best, bd = -1, np.inf
+    for k in range(pts.shape[0]):
+        d = (pts[k, 0] - x) ** 2 + (pts[k, 1] - y) ** 2
+        if d < bd:
+            best, bd = k, d
+    return best, math.sqrt(bd)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def neighbour_spacing(pts: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Median distance from each point to its four nearest others (1 where it has none)."""
+    n = pts.shape[0]
+    if n < 2:
+        out[:] = 1.0
+        return
+    k = min(4, n - 1)
+    d = np.empty(n)
+    for i in range(n):
+        for j in range(n):
+            d[j] = math.hypot(pts[j, 0] - pts[i, 0], pts[j, 1] - pts[i, 1])
+        d[i] = np.inf
+        out[i] = np.median(np.sort(d)[:k])
+
+
+_EDGE_STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def grow(pts: np.ndarray, dirs: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray,
+         contrast: float, seed: int, G: np.ndarray) -> int:  # pragma: no cover - numba
+    """Grow a lattice from corner ``seed`` into ``G`` (square, odd side; the seed at its centre)
+    and return how many corners it holds (1 where the seed's neighbourhood fails its checks).
+
+    The seed's four neighbours along its own edge directions (``dirs[seed]``: two unit vectors)
+    come first, among its eight nearest candidates: within 25 degrees of the direction and 0.4 to
+    2.5 of its ``spacing``. Each such link must cross an edge between a black and a white square
+    at its middle (the shade either side differs by 0.4 of the seed's ``contrast``; a diagonal
+    link crosses the middle of one square and fails), and three of the four diagonal neighbours
+    must lie where the edge neighbours put them (within a third of a step). Then position after
+    position next to the lattice is predicted from the members within two steps (quadratic or
+    affine map, else the straight continuation of a row or column) and takes the candidate
+    nearest the prediction if it lies within a third of the local step and is free; where two
+    positions want one candidate, the nearer wins. A position is tried again only when it has
+    gained neighbours to predict it from."""
+    n = pts.shape[0]
+    S = G.shape[0]
+    R = S // 2
+    G[:] = -1
+    taken = np.zeros(n, dtype=np.bool_)
+    G[R, R] = seed
+    taken[seed] = True
+    d = np.empty(n)
+    for j in range(n):
+        d[j] = math.hypot(pts[j, 0] - pts[seed, 0], pts[j, 1] - pts[seed, 1])
+    order = np.argsort(d, kind="mergesort")[:min(9, n)]
+    for t in range(4):
+        ax = 0 if t < 2 else 1
+        sg = 1.0 if t % 2 == 0 else -1.0
+        ux, uy = sg * dirs[seed, ax, 0], sg * dirs[seed, ax, 1]
+        best = -1
+        for ii in range(1, order.shape[0]):
+            k = order[ii]
+            if taken[k] or used[k]:
+                continue
+            dist = d[k]
+            wx, wy = (pts[k, 0] - pts[seed, 0]) / dist, (pts[k, 1] - pts[seed, 1]) / dist
+            if wx * ux + wy * uy > _COS25 and 0.4 * spacing[seed] < dist < 2.5 * spacing[seed]:
+                best = k
+                break
+        if best < 0:
+            return 1
+        da, db = _EDGE_STEPS[t]
+        G[R + da, R + db] = best
+        taken[best] = True
+    # Across each link's middle the shade changes (an edge), a fifth of the link either side.
+    for t in range(4):
+        da, db = _EDGE_STEPS[t]
+        k = G[R + da, R + db]
+        dx, dy = pts[k, 0] - pts[seed, 0], pts[k, 1] - pts[seed, 1]
+        mx, my = pts[seed, 0] + 0.5 * dx, pts[seed, 1] + 0.5 * dy
+        nx, ny = -dy * 0.2, dx * 0.2
+        if abs(bilinear(img, mx + nx, my + ny) - bilinear(img, mx - nx, my - ny)) < 0.4 * contrast:
+            return 1
+    found_diag = 0
+    for da in (1, -1):
+        for db in (1, -1):
+            ka, kb = G[R + da, R], G[R, R + db]
+            wx = pts[ka, 0] + pts[kb, 0] - pts[seed, 0]
+            wy = pts[ka, 1] + pts[kb, 1] - pts[seed, 1]
+            step = min(math.hypot(pts[ka, 0] - pts[seed, 0], pts[ka, 1] - pts[seed, 1]),
+                       math.hypot(pts[kb, 0] - pts[seed, 0], pts[kb, 1] - pts[seed, 1]))
+            k, dist = _nearest(pts, wx, wy)
+            if dist <= step / 3.0 and not taken[k] and not used[k]:
+                G[R + da, R + db] = k
+                taken[k] = True
+                found_diag += 1
+    if found_diag < 3:
+        return 1
+    count = 5 + found_diag
+    tried = np.full((S, S), -1, dtype=np.int64)
+    claim_d = np.empty(n)
+    claim_a = np.empty(n, dtype=np.int64)
+    claim_b = np.empty(n, dtype=np.int64)
+    coef = np.empty((6, 2))
+    grew = True
+    while grew:
+        grew = False
+        claim_d[:] = np.inf
+        for a in range(S):
+            for b in range(S):
+                if G[a, b] >= 0:
+                    continue
+                edge = False
+                for t in range(4):
+                    aa, bb = a + _EDGE_STEPS[t][0], b + _EDGE_STEPS[t][1]
+                    if 0 <= aa < S and 0 <= bb < S and G[aa, bb] >= 0:
+                        edge = True
+                if not edge:
+                    continue
+                n_near = 0
+                for da in range(-2, 3):
+                    for db in range(-2, 3):
+                        aa, bb = a + da, b + db
+                        if 0 <= aa < S and 0 <= bb < S and G[aa, bb] >= 0:
+                            n_near += 1
+                if tried[a, b] == n_near:
+                    continue  # nothing new to predict it from
+                tried[a, b] = n_near
+                kind = local_fit(G, pts, a, b, 2, True, 3, coef)
+                if kind > 0:
+                    px, py = coef[0, 0], coef[0, 1]
+                    step = min(math.hypot(coef[1, 0], coef[1, 1]), math.hypot(coef[2, 0], coef[2, 1]))
+                else:  # the straight continuation of a row or column
+                    step = -1.0
+                    for t in range(4):
+                        da, db = _EDGE_STEPS[t]
+                        a1, b1, a2, b2 = a - da, b - db, a - 2 * da, b - 2 * db
+                        if 0 <= a2 < S and 0 <= b2 < S and 0 <= a1 < S and 0 <= b1 < S \
+                                and G[a1, b1] >= 0 and G[a2, b2] >= 0:
+                            p1, p2 = G[a1, b1], G[a2, b2]
+                            ex, ey = pts[p1, 0] - pts[p2, 0], pts[p1, 1] - pts[p2, 1]
+                            px, py = pts[p1, 0] + ex, pts[p1, 1] + ey
+                            step = math.hypot(ex, ey)
+                            break
+                    if step < 0:
+                        continue
+                k, dist = _nearest(pts, px, py)
+                if not dist <= step / 3.0 or taken[k] or used[k]:
+                    continue
+                if dist < claim_d[k]:
+                    claim_d[k] = dist
+                    claim_a[k] = a
+                    claim_b[k] = b
+        for k in range(n):
+            if claim_d[k] < np.inf:
+                G[claim_a[k], claim_b[k]] = k
+                taken[k] = True
+                count += 1
+                grew = True
+    return count
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def assemble(pts: np.ndarray, dirs: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.ndarray,
+             n_corners: int, best: np.ndarray) -> int:  # pragma: no cover - numba
+    """Grow lattices (:func:`grow`) from the candidates in ``order``, keeping the largest in
+    ``best`` (same shape as the growth grid); corners of a lattice of five or more seed no other.
+    Stops once a lattice has the board's ``n_corners`` or nine tenths of the candidates are
+    used. Returns the size of the largest (0 if none)."""
+    n = pts.shape[0]
+    spacing = np.empty(n)
+    neighbour_spacing(pts, spacing)
+    used = np.zeros(n, dtype=np.bool_)
+    G = np.empty_like(best)
+    best[:] = -1
+    n_best = 0
+    n_used = 0
+    for seed in order:
+        if used[seed]:
+            continue
+        c = grow(pts, dirs, spacing, used, img, contrast[seed], seed, G)
+        if c < 5:
+            continue
+        for a in range(G.shape[0]):
+            for b in range(G.shape[1]):
+                if G[a, b] >= 0:
+                    used[G[a, b]] = True
+                    n_used += 1
+        if c > n_best:
+            best[:] = G
+            n_best = c
+        if n_best >= n_corners or n_used > 0.9 * n:
+            break
+    return n_best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def consistent(G: np.ndarray, q: np.ndarray, tol: float, keep: np.ndarray) -> None:  # pragma: no cover - numba
+    """Clear ``keep[k]`` for the corners of ``G`` (indices into ``q``) that miss the map fitted
+    on their neighbours within two steps, themselves left out (quadratic, or affine from four
+    or more), by more than ``tol`` pixels, or that have too few neighbours to be checked. The
+    worst within its own neighbourhood goes first, for up to eight rounds, so that one wrong
+    corner does not condemn its neighbours."""
+    S0, S1 = G.shape
+    res = np.zeros(q.shape[0])
+    coef = np.empty((6, 2))
+    for _ in range(8):
+        any_bad = False
+        for a in range(S0):
+            for b in range(S1):
+                k = G[a, b]
+                if k < 0:
+                    continue
+                if local_fit(G, q, a, b, 2, True, 4, coef) == 0:
+                    res[k] = np.inf
+                else:
+                    res[k] = math.hypot(coef[0, 0] - q[k, 0], coef[0, 1] - q[k, 1])
+                if res[k] > tol:
+                    any_bad = True
+        if not any_bad:
+            return
+        drop = np.zeros(q.shape[0], dtype=np.bool_)
+        for a in range(S0):
+            for b in range(S1):
+                k = G[a, b]
+                if k < 0 or not res[k] > tol:
+                    continue
+                worst = True
+                for da in range(-2, 3):
+                    for db in range(-2, 3):
+                        aa, bb = a + da, b + db
+                        if 0 <= aa < S0 and 0 <= bb < S1 and G[aa, bb] >= 0 and res[G[aa, bb]] > res[k]:
+                            worst = False
+                if worst:
+                    drop[k] = True
+        for a in range(S0):
+            for b in range(S1):
+                k = G[a, b]
+                if k >= 0 and drop[k]:
+                    keep[k] = False
+                    G[a, b] = -1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side: int, near: np.ndarray,
+                   far: np.ndarray) -> None:  # pragma: no cover - numba
+    """The shade half a square and one and a half squares out from the lattice's side ``side``
+    (-1: low, +1: high) of lattice axis ``axis``, at each square along it (``near`` and ``far``
+    hold one entry a square: between the corners j and j + 1 of the outer line), from the map
+    fitted on the corners within two steps of the corner j (NaN where no map, or the point is
+    within 2 px of the image edge or outside)."""
+    H, W = s.shape
+    S = G.shape
+    edge = 0 if side < 0 else S[axis] - 1
+    coef = np.empty((6, 2))
+    for j in range(near.shape[0]):
+        near[j] = np.nan
+        far[j] = np.nan
+        a, b = (edge, j) if axis == 0 else (j, edge)
+        if local_fit(G, q, a, b, 2, False, 4, coef) == 0:
+            continue
+        for t in range(2):
+            depth = 0.5 if t == 0 else 1.5
+            ra = side * depth if axis == 0 else 0.5
+            rb = side * depth if axis == 1 else 0.5
+            x = coef[0, 0] + coef[1, 0] * ra + coef[2, 0] * rb + coef[3, 0] * ra * ra + coef[4, 0] * ra * rb \
+                + coef[5, 0] * rb * rb
+            y = coef[0, 1] + coef[1, 1] * ra + coef[2, 1] * rb + coef[3, 1] * ra * ra + coef[4, 1] * ra * rb \
+                + coef[5, 1] * rb * rb
+            if 2 <= x <= W - 3 and 2 <= y <= H - 3:
+                v = bilinear(s, x, y)
+                if t == 0:
+                    near[j] = v
+                else:
+                    far[j] = v
