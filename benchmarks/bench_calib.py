@@ -1,4 +1,4 @@
-"""Calibration on the real Bouguet set: detection per image and the solve vs OpenCV."""
+"""Calibration on the real Bouguet set: the solve vs OpenCV (detection: bench_detect)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from benchmarks.harness import Case, median_time
+from benchmarks.harness import Case
 from camkit.calib import DEFAULT_FIX, Checkerboard, calibrate, detect_corners
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bouguet_calib_example"
@@ -30,23 +30,9 @@ def cases() -> list[Case]:
     flags = cv2.CALIB_FIX_K3
 
     return [
-        Case("detect a 12x13 board, 20 real 640x480 images", "20 images",
-             lambda: [detect_corners(im, BOARD) for im in images],
-             "cv2.findChessboardCorners (default flags)",
-             lambda: [cv2.findChessboardCorners(im, (12, 13)) for im in images], target=1.0, repeats=3, warmup=1),
         Case("calibrate from the detected corners (k1 k2 p1 p2)", "20 views, ~3100 corners",
              lambda: calibrate([obj] * 20, corners, width=640, height=480, fix=(*DEFAULT_FIX, "k3")),
              "cv2.calibrateCamera (CALIB_FIX_K3)",
              lambda: cv2.calibrateCamera(obj_cv, img_cv, (640, 480), None, None, flags=flags),
              target=1.0, repeats=5, warmup=1),
     ]
-
-
-def extra_tables() -> str:
-    noise = np.random.default_rng(0).integers(0, 256, (480, 640), dtype=np.uint8)
-    ours = median_time(lambda: detect_corners(noise, BOARD), repeats=7)
-    cv = median_time(lambda: cv2.findChessboardCorners(noise, (12, 13)), repeats=3, warmup=1)
-    return ("| an image with no board (640x480 noise) | camkit median | cv2.findChessboardCorners | target |\n"
-            "|---|---|---|---|\n"
-            f"| 'not found' | {ours * 1e3:.1f} ms | {cv * 1e3:.1f} ms | "
-            f"<= 50 ms: {'met' if ours <= 0.05 else 'MISSED'} |\n")

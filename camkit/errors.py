@@ -34,7 +34,14 @@ class ParameterError(CamkitError, ValueError):
 
 
 class EstimationError(CamkitError, RuntimeError):
-    """An estimation cannot succeed with the data given."""
+    """An estimation cannot succeed with the data given.
+
+    ``detections``, where the estimate came from images (:func:`camkit.calib.calibrate_images`),
+    holds the detector's result for each image, so that a caller can say which were found."""
+
+    def __init__(self, message: str, *, detections: tuple | None = None) -> None:
+        super().__init__(message)
+        self.detections = detections
 
 
 class ImageFileError(CamkitError, ValueError):

@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit
 
+from camkit._kernels.remap import keys4
+
 _COS25 = math.cos(math.radians(25.0))
 
 
@@ -37,6 +39,30 @@ def bilinear_points(img: np.ndarray, xy: np.ndarray, out: np.ndarray) -> None:  
     """``out[i] = bilinear(img, *xy[i])``."""
     for i in range(xy.shape[0]):
         out[i] = bilinear(img, xy[i, 0], xy[i, 1])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sample_points(img: np.ndarray, x: np.ndarray, y: np.ndarray, cubic: bool,
+                  out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out[i]`` = the image at (x[i], y[i]): bilinear, or bicubic (Keys, a = -0.5, as
+    ``resample.remap``'s default), edge pixels replicated."""
+    H, W = img.shape
+    for i in range(x.shape[0]):
+        if not cubic:
+            out[i] = bilinear(img, x[i], y[i])
+            continue
+        fx, fy = math.floor(x[i]), math.floor(y[i])
+        wx = keys4(x[i] - fx, -0.5)
+        wy = keys4(y[i] - fy, -0.5)
+        acc = 0.0
+        for j in range(4):
+            yy = min(max(int(fy) - 1 + j, 0), H - 1)
+            row = 0.0
+            for m in range(4):
+                xx = min(max(int(fx) - 1 + m, 0), W - 1)
+                row += wx[m] * img[yy, xx]
+            acc += wy[j] * row
+        out[i] = acc
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -341,8 +367,8 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
     """The shade half a square and one and a half squares out from the lattice's side ``side``
     (-1: low, +1: high) of lattice axis ``axis``, at each square along it (``near`` and ``far``
     hold one entry a square: between the corners j and j + 1 of the outer line), from the map
-    fitted on the corners within two steps of the corner j (NaN where no map, or the point is
-    within 2 px of the image edge or outside)."""
+    fitted on the corners within two steps of the corner j (NaN where no map; infinity where the
+    point lies outside the image or within 2 px of its edge)."""
     H, W = s.shape
     S = G.shape
     edge = 0 if side < 0 else S[axis] - 1
@@ -361,9 +387,8 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
                 + coef[5, 0] * rb * rb
             y = coef[0, 1] + coef[1, 1] * ra + coef[2, 1] * rb + coef[3, 1] * ra * ra + coef[4, 1] * ra * rb \
                 + coef[5, 1] * rb * rb
-            if 2 <= x <= W - 3 and 2 <= y <= H - 3:
-                v = bilinear(s, x, y)
-                if t == 0:
-                    near[j] = v
-                else:
-                    far[j] = v
+            v = bilinear(s, x, y) if 2 <= x <= W - 3 and 2 <= y <= H - 3 else np.inf
+            if t == 0:
+                near[j] = v
+            else:
+                far[j] = v

@@ -529,6 +529,11 @@ def _equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: in
     return K, poses_from_homographies(K, [K @ H for H in Hs])
 
 
+#: Boards calibrate_images asks for before it tries: two fix a pinhole camera with zero skew
+#: (Zhang 2000, sec. 3.1) but leave nothing to check it with.
+_MIN_BOARDS = 3
+
+
 def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", fix: tuple[str, ...] | None = None,
                      free: tuple[str, ...] | None = None, robust_loss: str | None = None,
                      reject_sigma: float | None = 5.0, progress: Any = None) -> CalibrationResult:
@@ -572,13 +577,20 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
         if progress is not None:
             progress(k + 1, len(images))
     found = [d for d in detections if d.found]
-    if len(found) < 2:
-        raise EstimationError(f"images: the board was found in {len(found)} of {len(images)} images; check the "
-                              f"board size (inner corners {board.inner_cols}x{board.inner_rows}, not squares) and "
-                              "that the whole board is in the photos")
+    if len(found) < _MIN_BOARDS:
+        raise EstimationError(
+            f"images: the board was found in {len(found)} of {len(images)} images; calibration needs it in at "
+            f"least {_MIN_BOARDS} (better 10 or more), each showing the board tilted a different way. Check the "
+            f"board size (inner corners {board.inner_cols}x{board.inner_rows}, not squares), and photograph the "
+            "whole board, in focus, filling a good part of the image", detections=tuple(detections))
     obj = board.object_points()
-    result = calibrate([obj] * len(detections), [d.corners for d in detections], width=size[1], height=size[0],
-                       model=model, fix=fix, free=free, robust_loss=robust_loss, reject_sigma=reject_sigma)
+    try:
+        result = calibrate([obj] * len(detections), [d.corners for d in detections], width=size[1],
+                           height=size[0], model=model, fix=fix, free=free, robust_loss=robust_loss,
+                           reject_sigma=reject_sigma)
+    except EstimationError as exc:
+        raise EstimationError(f"{exc} (the board was found in {len(found)} of {len(images)} images)",
+                              detections=tuple(detections)) from None
     reasons = {i: r for i, r in result.rejected_views}
     rejected_views = [(i, reasons[i] if d.found else f"board not found: {d.message}")
                       for i, d in enumerate(detections) if i in reasons]

@@ -16,6 +16,14 @@ def _v(H: np.ndarray, i: int, j: int) -> np.ndarray:
                      hi[2] * hj[0] + hi[0] * hj[2], hi[2] * hj[1] + hi[1] * hj[2], hi[2] * hj[2]])
 
 
+#: Said where the linear solution is not a camera (B = K^-T K^-1 not positive definite, or a
+#: negative focal length squared): the views are too few or too alike, or one is wrong.
+_NO_CAMERA = ("views: no camera explains these views of the board: they are too few or too alike (the board "
+              "seen square-on, or always tilted the same way), or one detection is wrong. Photograph the board "
+              "tilted 10-50 degrees about different axes, near the image's corners and edges too, in 5 or more "
+              "photos")
+
+
 def intrinsics_from_homographies(homographies: list[np.ndarray], *, zero_skew: bool = True) -> np.ndarray:
     """The intrinsic matrix K from the homographies of >= 3 views of a plane (>= 2 with
     ``zero_skew``).
@@ -48,12 +56,11 @@ def intrinsics_from_homographies(homographies: list[np.ndarray], *, zero_skew: b
         B11, B12, B22, B13, B23, B33 = -b
     den = B11 * B22 - B12 * B12
     if B11 <= 0 or den <= 0:
-        raise EstimationError("views: the views give no valid camera (B not positive definite); "
-                              "tilt the board more and cover the image")
+        raise EstimationError(_NO_CAMERA)
     v0 = (B12 * B13 - B11 * B23) / den
     lam = B33 - (B13 * B13 + v0 * (B12 * B13 - B11 * B23)) / B11
     if lam / B11 <= 0:
-        raise EstimationError("views: the views give no valid camera (negative focal length squared)")
+        raise EstimationError(_NO_CAMERA)
     alpha = np.sqrt(lam / B11)
     beta = np.sqrt(lam * B11 / den)
     gamma = -B12 * alpha * alpha * beta / lam

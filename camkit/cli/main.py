@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from camkit import __version__
-from camkit.errors import CamkitError, ParameterError
+from camkit.errors import CamkitError, EstimationError, ParameterError
 
 __all__ = ["main"]
 
@@ -95,8 +95,21 @@ def _view_table(job):
     return table
 
 
+def _detection_table(names, detections):
+    from rich.table import Table
+
+    table = Table(title="Boards", title_justify="left")
+    for col, just in (("image", "left"), ("board", "left"), ("corners", "right"), ("detector", "left")):
+        table.add_column(col, justify=just)
+    for name, det in zip(names, detections, strict=True):
+        table.add_row(name, "found" if det.found else "[red]not found[/red]", str(det.n_found), det.message)
+    return table
+
+
 def _summary(console, job) -> None:
     r = job.result
+    if r.detections is not None:
+        console.print(f"board found in {sum(d.found for d in r.detections)} of {len(r.detections)} images")
     console.print(f"{len(r.view_indices)} of {len(job.image_names)} views used; RMS {r.rms_px:.3f} px per corner "
                   f"(as OpenCV's); residual std {r.std_px[0]:.3f} / {r.std_px[1]:.3f} px (x / y); "
                   f"{len(r.rejected)} corners rejected as outliers; {r.message}")
@@ -143,9 +156,15 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
                   f"corners, {args.square * 1000:g} mm squares, model {args.model}")
     for path, why in inputs.skipped:
         console.print(f"skipped {path}: {why}")
-    with _Progress(console) as progress:
-        job = calibrate_files(inputs.paths, board, model=args.model, fix=fix, free=free, camera_file=args.output,
-                              results_file=args.json, report_file=args.report, progress=progress)
+    try:
+        with _Progress(console) as progress:
+            job = calibrate_files(inputs.paths, board, model=args.model, fix=fix, free=free,
+                                  camera_file=args.output, results_file=args.json, report_file=args.report,
+                                  progress=progress)
+    except EstimationError as exc:
+        if exc.detections is not None:  # which images gave a board, and why the others did not
+            console.print(_detection_table([p.name for p in inputs.paths], exc.detections))
+        raise
     console.print(_view_table(job))
     console.print(_param_table(job.result))
     _summary(console, job)

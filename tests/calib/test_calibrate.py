@@ -111,6 +111,26 @@ def test_errors_name_the_cause():
         calibrate([OBJ + np.array([0.0, 0.0, 0.1])] * 15, imgs, width=1280, height=960)
 
 
+def test_views_no_camera_explains_are_refused_in_words():
+    """Homographies that no camera explains (random matrices, as from wrong detections): the
+    linear solution is not a camera (in Zhang's terms B = K^-T K^-1 is not positive definite, or
+    the focal length squared comes out negative), and the user reads why in words and what to
+    photograph, never those internal quantities."""
+    from camkit.calib.zhang import intrinsics_from_homographies
+
+    refused = 0
+    for seed in range(8):
+        Hs = list(np.random.default_rng(seed).normal(size=(3, 3, 3)))
+        try:
+            intrinsics_from_homographies(Hs)
+        except EstimationError as exc:
+            refused += 1
+            msg = str(exc)
+            assert "no camera explains these views" in msg and "tilted 10-50 degrees" in msg
+            assert not any(w in msg for w in ("B not", "positive definite", "squared", "lam"))
+    assert refused >= 6
+
+
 def test_homography_needs_four_points_and_matching_shapes():
     with pytest.raises(EstimationError, match="at least 4 correspondences"):
         find_homography(np.zeros((3, 2)), np.zeros((3, 2)))

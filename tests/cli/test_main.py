@@ -105,7 +105,8 @@ def test_calibrate_real_set_writes_the_results_format(shared_data, tmp_path, cap
     args = ["calibrate", *map(str, files), "--board", "12x13", "--square", "30mm", "-o", str(tmp_path / "cam.json"),
             "--json", str(tmp_path / "res.json"), "--report", str(tmp_path / "rep.html")]
     assert main(args) == 0
-    assert "20 of 20 views used" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "board found in 20 of 20 images" in out and "20 of 20 views used" in out
     doc = json.loads((tmp_path / "res.json").read_text())
     assert {"model", "rms_px", "std_px", "views", "stddev"} <= set(doc)
     assert doc["model"]["type"] == "brown-conrady" and doc["model"]["width"] == 640
@@ -115,6 +116,26 @@ def test_calibrate_real_set_writes_the_results_format(shared_data, tmp_path, cap
     assert abs(doc["model"]["fx"] - 657.46) < 0.5 and max(doc["std_px"]) <= 0.15
     assert set(doc["stddev"]) == {"fx", "fy", "cx", "cy", "k1", "k2", "k3", "p1", "p2"}
     assert load_camera(tmp_path / "cam.json").fx == doc["model"]["fx"]
+
+
+def test_calibrate_with_too_few_boards_says_which_images_and_what_to_photograph(shared_data, tmp_path, capsys):
+    """Two Bouguet photos and a blank image: the board is found in 2 of 3, fewer than a
+    calibration needs. The command fails with words (how many found, how many needed, what to
+    photograph) and shows per image found / not found with the detector's reason; nothing is
+    written."""
+    files = [shared_data / "bouguet_calib_example" / f"Image{k}.tif" for k in (1, 2)]
+    blank = tmp_path / "blank.png"
+    write_png(blank, np.full((480, 640), 128, np.uint8))
+    cam = tmp_path / "cam.json"
+    args = ["calibrate", *map(str, files), str(blank), "--board", "12x13", "--square", "30mm", "-o", str(cam)]
+    assert main(args) == 1
+    cap = capsys.readouterr()
+    assert "found in 2 of 3 images" in cap.err and "at least 3" in cap.err and "tilted" in cap.err
+    assert "focal length squared" not in cap.err and "positive definite" not in cap.err
+    rows = {line.split()[1]: line for line in cap.out.splitlines() if ".tif" in line or ".png" in line}
+    assert "found" in rows["Image1.tif"] and "not found" not in rows["Image1.tif"]
+    assert "not found" in rows["blank.png"] and "no saddle points" in rows["blank.png"]
+    assert not cam.exists()
 
 
 def test_calibrate_never_overwrites_an_input(tmp_path, capsys):
