@@ -108,3 +108,27 @@ def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: in
                 for i in range(2 * R + 1):
                     acc += k[i] * tmp[y + i, x]
                 out[ty + y, tx + x] = acc
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def grey_mean(img: np.ndarray, scale: float, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out`` = the mean of the first three channels of ``img`` (H, W, C) (the one channel
+    where C < 3), times ``scale``."""
+    H, W, C = img.shape
+    n = 3 if C >= 3 else 1
+    f = scale / n
+    for y in prange(H):
+        for x in range(W):
+            acc = 0.0
+            for c in range(n):
+                acc += img[y, x, c]
+            out[y, x] = acc * f
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def stretch(g: np.ndarray, lo: float, inv: float) -> None:  # pragma: no cover - numba
+    """``g = (g - lo) * inv`` in place."""
+    H, W = g.shape
+    for y in prange(H):
+        for x in range(W):
+            g[y, x] = (g[y, x] - lo) * inv
