@@ -141,14 +141,38 @@ def test_real_sets_against_opencv(shared_data, name):
     # board camkit returns carries OpenCV's labels up to the board's symmetry (no corner
     # nearer another corner's place), and its corners agree with OpenCV's within 0.15 px
     # median. Measured: found / OpenCV found = 22/22, 13/13, 18/18 (+2 OpenCV missed),
-    # 20/26, 11/13; medians 0.090, 0.064, 0.075, 0.135, 0.090 px.
+    # 20/26, 13/13; medians 0.090, 0.064, 0.075, 0.135, 0.089 px.
     from benchmarks.detect_real import run_set
 
     r = run_set(shared_data / "real_boards" / name)
     assert not r.wrong, r.wrong
     assert r.median_px <= 0.15
-    minimum = {"boofcv_fisheye": 20, "opencv_right": 11}.get(name, r.reference_found)
+    minimum = {"boofcv_fisheye": 20}.get(name, r.reference_found)
     assert r.found - r.extra >= minimum, r.missed
+
+
+@pytest.mark.parametrize("size", [(320, 240), (1920, 1440), (4000, 3000)])
+def test_scale_the_same_photos_from_320x240_to_12_mp(shared_data, size):
+    """Issue 21 item 1: two Bouguet photos shrunk (area) or enlarged (bicubic) so the squares
+    span 15 to 190 px. The board is found with the same labels, and its corners, mapped back to
+    the photo's own pixels, agree with those found there: median within 0.06 px, every corner
+    within 0.35 px (at 320x240, whose pixels are two of the photo's: 0.17 and 0.7 px; a wrong
+    label would be a square, 30 px, off). Measured: medians 0.106-0.139 px at 320x240,
+    0.009-0.050 enlarged. At 50 MP (8192x6144, not
+    run here: 4 s an image) 156 and 137 of 156, medians 0.027 and 0.045."""
+    import cv2
+
+    board = Checkerboard(12, 13, 0.030)
+    for k in (1, 5):
+        photo = cv2.imread(str(shared_data / "bouguet_calib_example" / f"Image{k}.tif"), cv2.IMREAD_UNCHANGED)
+        ref = detect_corners(photo, board).corners
+        img = cv2.resize(photo, size, interpolation=cv2.INTER_AREA if size[0] < 640 else cv2.INTER_CUBIC)
+        det = detect_corners(img, board)
+        assert det.found and det.n_found >= 135, det.message
+        scale = size[0] / 640
+        d = np.hypot(*((det.corners + 0.5) / scale - 0.5 - ref).T)
+        coarse = 1.0 / min(scale, 1.0)  # the photo's pixels per pixel of the image searched
+        assert np.nanmedian(d) <= 0.06 * coarse ** 1.5 and np.nanmax(d) <= 0.35 * coarse, (k, size, d)
 
 
 def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
