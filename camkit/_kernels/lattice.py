@@ -282,18 +282,18 @@ def grow(pts: np.ndarray, dirs: np.ndarray, spacing: np.ndarray, used: np.ndarra
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def assemble(pts: np.ndarray, dirs: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.ndarray,
-             n_corners: int, best: np.ndarray) -> int:  # pragma: no cover - numba
-    """Grow lattices (:func:`grow`) from the candidates in ``order``, keeping the largest in
-    ``best`` (same shape as the growth grid); corners of a lattice of five or more seed no other.
-    Stops once a lattice has the board's ``n_corners`` or nine tenths of the candidates are
-    used. Returns the size of the largest (0 if none)."""
+             side: int, owner: np.ndarray, coord: np.ndarray) -> int:  # pragma: no cover - numba
+    """Grow lattices (:func:`grow`, in a grid of ``side``) from the candidates in ``order``;
+    corners of a lattice of five or more seed no other. Writes each candidate's lattice number
+    into ``owner`` (-1: none) and its lattice position into ``coord``; stops once nine tenths
+    of the candidates are used. Returns the number of lattices."""
     n = pts.shape[0]
     spacing = np.empty(n)
     neighbour_spacing(pts, spacing)
     used = np.zeros(n, dtype=np.bool_)
-    G = np.empty_like(best)
-    best[:] = -1
-    n_best = 0
+    G = np.empty((side, side), dtype=np.int64)
+    owner[:] = -1
+    n_lattices = 0
     n_used = 0
     for seed in order:
         if used[seed]:
@@ -301,24 +301,26 @@ def assemble(pts: np.ndarray, dirs: np.ndarray, img: np.ndarray, contrast: np.nd
         c = grow(pts, dirs, spacing, used, img, contrast[seed], seed, G)
         if c < 5:
             continue
-        for a in range(G.shape[0]):
-            for b in range(G.shape[1]):
-                if G[a, b] >= 0:
-                    used[G[a, b]] = True
+        for a in range(side):
+            for b in range(side):
+                k = G[a, b]
+                if k >= 0:
+                    used[k] = True
+                    owner[k] = n_lattices
+                    coord[k, 0] = a
+                    coord[k, 1] = b
                     n_used += 1
-        if c > n_best:
-            best[:] = G
-            n_best = c
-        if n_best >= n_corners or n_used > 0.9 * n:
+        n_lattices += 1
+        if n_used > 0.9 * n:
             break
-    return n_best
+    return n_lattices
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def consistent(G: np.ndarray, q: np.ndarray, tol: float, keep: np.ndarray) -> None:  # pragma: no cover - numba
+def consistent(G: np.ndarray, q: np.ndarray, tol: np.ndarray, keep: np.ndarray) -> None:  # pragma: no cover - numba
     """Clear ``keep[k]`` for the corners of ``G`` (indices into ``q``) that miss the map fitted
     on their neighbours within two steps, themselves left out (quadratic, or affine from four
-    or more), by more than ``tol`` pixels, or that have too few neighbours to be checked. The
+    or more), by more than ``tol[k]`` pixels, or that have too few neighbours to be checked. The
     worst within its own neighbourhood goes first, for up to eight rounds, so that one wrong
     corner does not condemn its neighbours."""
     S0, S1 = G.shape
@@ -335,7 +337,7 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: float, keep: np.ndarray) -> No
                     res[k] = np.inf
                 else:
                     res[k] = math.hypot(coef[0, 0] - q[k, 0], coef[0, 1] - q[k, 1])
-                if res[k] > tol:
+                if res[k] > tol[k]:
                     any_bad = True
         if not any_bad:
             return
@@ -343,13 +345,14 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: float, keep: np.ndarray) -> No
         for a in range(S0):
             for b in range(S1):
                 k = G[a, b]
-                if k < 0 or not res[k] > tol:
+                if k < 0 or not res[k] > tol[k]:
                     continue
                 worst = True
                 for da in range(-2, 3):
                     for db in range(-2, 3):
                         aa, bb = a + da, b + db
-                        if 0 <= aa < S0 and 0 <= bb < S1 and G[aa, bb] >= 0 and res[G[aa, bb]] > res[k]:
+                        if 0 <= aa < S0 and 0 <= bb < S1 and G[aa, bb] >= 0 \
+                                and res[G[aa, bb]] / tol[G[aa, bb]] > res[k] / tol[k]:
                             worst = False
                 if worst:
                     drop[k] = True

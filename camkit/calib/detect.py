@@ -121,22 +121,24 @@ def _edge_directions(v: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([np.cos(a), np.sin(a)], -1), np.stack([np.cos(b), np.sin(b)], -1)], axis=1)
 
 
-def _assemble(pts: np.ndarray, dirs: np.ndarray, n_corners: int, max_side: int, img: np.ndarray,
-              contrast: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The corners' lattice: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
-    turn, most central first, keeping the largest; corners in a grown lattice seed no other.
-    Growth stays within ``max_side + 2`` positions of its seed either way (a lattice that
-    reaches that far is longer than the board, and is refused later as such). Returns (indices
-    into pts, lattice coordinates from 0)."""
+def _assemble(pts: np.ndarray, dirs: np.ndarray, max_side: int, img: np.ndarray,
+              contrast: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The corners' lattices: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
+    turn, most central first; corners in a grown lattice seed no other. Growth stays within
+    ``max_side + 2`` positions of its seed either way (a lattice that reaches that far is
+    longer than the board, and is refused later as such). Returns (indices into pts, lattice
+    coordinates from 0) for each lattice, largest first."""
     order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T), kind="stable")
     side = 2 * (max_side + 2) + 1
-    best = np.empty((side, side), dtype=np.int64)
+    owner = np.empty(len(pts), dtype=np.int64)
+    coord = np.empty((len(pts), 2), dtype=np.int64)
     n = _kl.assemble(np.ascontiguousarray(pts), np.ascontiguousarray(dirs), img, np.ascontiguousarray(contrast),
-                     order, n_corners, best)
-    if n == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros((0, 2), dtype=np.int64)
-    g = np.argwhere(best >= 0)
-    return best[g[:, 0], g[:, 1]], g - g.min(axis=0)
+                     order, side, owner, coord)
+    out = []
+    for k in range(n):
+        idx = np.flatnonzero(owner == k)
+        out.append((idx, coord[idx] - coord[idx].min(axis=0)))
+    return sorted(out, key=lambda t: -len(t[0]))
 
 
 def _grid(g: np.ndarray, margin: int = 0) -> np.ndarray:
@@ -312,14 +314,48 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
         return fail(f"not found: {int(ok.sum())} X-corners")
     pts, v, sym = pts[ok], v[ok], sym[ok]
     strength = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)]
-    if len(pts) > 3 * n_corners:  # clutter or noise: keep the strongest (bounds the time)
-        keep = np.argsort(-strength)[:3 * n_corners]
+    if len(pts) > max(3 * n_corners, 500):  # clutter or noise: keep the strongest (bounds the time)
+        keep = np.argsort(-strength)[:max(3 * n_corners, 500)]
         pts, v, sym = pts[keep], v[keep], sym[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
-    idx, g = _assemble(pts, _edge_directions(v), n_corners, max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
-    if len(idx) < 4:
+    lattices = _assemble(pts, _edge_directions(v), max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
+    if not lattices or len(lattices[0][0]) < 4:
         return fail("not found: the corners form no lattice")
+    # Each lattice of half the largest's size or more is checked and labelled in turn. Where
+    # more than one passes (the board and a second pattern, e.g. a larger board cut by the
+    # image's edge to the board's size), the one whose border is seen on more sides wins: its
+    # extent is shown, not assumed.
+    results = []
+    for idx, g in lattices:
+        if len(idx) < max(4, 0.5 * len(lattices[0][0])):
+            break
+        det, borders = _label(s, grey.shape, pts[idx], sym[idx], g, board)
+        results.append((det, borders))
+        if det.found and borders == 4:
+            break
+    passed = sorted(((b, d.n_found, -i) for i, (d, b) in enumerate(results) if d.found), reverse=True)
+    if len(passed) > 1 and passed[0][0] == passed[1][0]:
+        det = results[-passed[0][2]][0]
+        return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), det.window_px,
+                               f"not found: {len(passed)} patterns in the image pass as the {cols}x{rows} board, "
+                               "with their borders seen on as many sides (another board in view?)")
+    return results[-passed[0][2]][0] if passed else results[0][0]
+
+
+def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarray, g: np.ndarray,
+           board: Checkerboard) -> tuple[CornerDetection, int]:
+    """Steps 3-6 of :func:`detect_corners` on one lattice (candidates ``pts``, lattice
+    coordinates ``g``): the detection, and on how many of its four sides the board's border
+    was seen."""
+    cols, rows = board.inner_cols, board.inner_rows
+    n_corners = cols * rows
+    empty = np.full((n_corners, 2), np.nan)
+
+    def fail(msg: str, window: int = 0) -> tuple[CornerDetection, int]:
+        return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg), 0
+
+    idx = np.arange(len(pts))
     spacing = _lattice_spacing(g, pts[idx])
     r = int(np.clip(round(spacing / 11.0), 2, 5))
     q, sig = _saddle_fit(s, pts[idx], r)
@@ -370,6 +406,17 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
                 score_hi = (hi.sum(), -float(np.mean(symq[hi])))
                 keep_t &= ~(lo if score_lo < score_hi else hi)
                 trimmed[ax] = True
+        if any(trimmed):
+            # Only a lattice whose pattern is not seen to go on past either end of that axis, nor
+            # to run out of the image there: either is a larger pattern (a second board cut by
+            # the image's edge) as much as a board printed one line longer.
+            whole = _border_evidence(s, g, q, spacing)
+            ax = 0 if trimmed[0] else 1
+            if {"more", "outside"} & {whole[(ax, -1)], whole[(ax, 1)]}:
+                why = (f"the corner lattice is {ext[0]}x{ext[1]}, larger than the board's {cols}x{rows}, and the "
+                       "pattern goes on past it or out of the image (another pattern, or the board's size is not "
+                       "the one given)")
+                continue
         gk = gt[keep_t] - gt[keep_t].min(axis=0)
         sides = _border_evidence(s, gk, q[keep_t], spacing)
         for ax in (0, 1):
@@ -378,6 +425,7 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
         off, why = _place(gk.max(axis=0) + 1, tgt, sides)
         if off is not None:
             placed = tgt, off
+            borders = sum(v == "border" for v in sides.values())
             g, q, sig = gk, q[keep_t], sig[keep_t]
             break
     if placed is None:
@@ -420,12 +468,12 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
     flat = g[:, 1] * cols + g[:, 0]
     out[flat] = q
     sigma[flat] = sig
-    inside = ((out[:, 0] >= 0) & (out[:, 0] <= grey.shape[1] - 1) & (out[:, 1] >= 0)
-              & (out[:, 1] <= grey.shape[0] - 1))
+    inside = ((out[:, 0] >= 0) & (out[:, 0] <= shape[1] - 1) & (out[:, 1] >= 0)
+              & (out[:, 1] <= shape[0] - 1))
     out[~inside] = np.nan
     sigma[~inside] = np.nan
     found = int(np.isfinite(out).all(axis=1).sum())
-    return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)")
+    return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)"), borders
 
 
 #: A corner whose saddle fit leaves residuals this many times the board's median (its sigma)
@@ -463,10 +511,12 @@ def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     condemn its neighbours. Where fewer than seven neighbours span the neighbourhood, an
     affine map from four or more is the test; a corner with fewer cannot be checked and goes
     (a label that cannot be checked is not returned). The tolerance is 8 % of the spacing,
-    0.6 px at least."""
+    0.6 px at least. (A looser one for corners with a clean saddle fit, 10-12 %, finds more
+    fisheye boards but lets wrong corners that support each other through.)"""
     keep = np.ones(len(g), dtype=bool)
+    tol = np.full(len(g), max(0.6, 0.08 * spacing))
     if len(g):
-        _kl.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), max(0.6, 0.08 * spacing), keep)
+        _kl.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), tol, keep)
     return keep
 
 
