@@ -8,15 +8,22 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns."""
-    H, W = img.shape
+@njit(cache=True, nogil=True, error_model="numpy")
+def gaussian_taps(sigma: float) -> np.ndarray:  # pragma: no cover - numba
+    """The normalised Gaussian's taps out to 3 sigma (one at least) either side."""
     R = max(math.ceil(3.0 * sigma), 1)
     k = np.empty(2 * R + 1)
     for i in range(2 * R + 1):
         k[i] = math.exp(-0.5 * ((i - R) / sigma) ** 2)
-    k /= k.sum()
+    return k / k.sum()
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns."""
+    H, W = img.shape
+    k = gaussian_taps(sigma)
+    R = k.shape[0] // 2
     tmp = np.empty((H, W))
     for y in prange(H):
         for x in range(W):
@@ -85,11 +92,8 @@ def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: in
     ``out`` at ``tile[i] + (0..side-1)``. Each patch reads its own margin of 3 sigma, so the
     values are those of the whole image blurred."""
     H, W = img.shape
-    R = max(math.ceil(3.0 * sigma), 1)
-    k = np.empty(2 * R + 1)
-    for i in range(2 * R + 1):
-        k[i] = math.exp(-0.5 * ((i - R) / sigma) ** 2)
-    k /= k.sum()
+    k = gaussian_taps(sigma)
+    R = k.shape[0] // 2
     for p in prange(origin.shape[0]):
         x0, y0 = origin[p, 0], origin[p, 1]
         tx, ty = tile[p, 0], tile[p, 1]

@@ -160,7 +160,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
        diagonal one does not) and whose square of nine is complete; then position after
        position is predicted from the lattice around it (a quadratic map of lattice to image:
        perspective and lens distortion) and takes the candidate nearest the prediction within
-       a third of the local step.
+       a third of the local step. Lattices are grown from every corner not yet in one; each
+       of at least half the largest's size goes through steps 3-6, and where two pass as the
+       board (the board and a second pattern), the one whose border is seen on more sides
+       wins; on a tie the board is not found.
     3. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each corner, the
        window's half-size an eleventh of the corner spacing (2 to 5 px); each corner's sigma
        from the fit's residuals. A corner whose sigma is over twice the board's median
@@ -177,8 +180,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
        squares alternate; one and a half out, the plain light margin. Where neither end
        shows it, or the lattice fits the board either way round, the board is not found. A
        lattice one line longer than the board (a board with one more corner printed than
-       declared) loses its weaker outer line; the labels along that axis are then fixed up
-       to that shift, which a calibration absorbs into the view's pose.
+       declared) loses its weaker outer line, unless the pattern goes on past that axis or
+       runs out of the image there (then it is another pattern); the labels along that axis
+       are then fixed up to that shift, which a calibration absorbs into the view's pose.
     6. Colours: where the half-turn changes the squares' colours (``inner_cols +
        inner_rows`` odd) they decide it, with square (0, 0) black as :class:`Checkerboard`
        defines it; otherwise either print (black or white corner squares) is accepted and
