@@ -69,6 +69,7 @@ def test_demo_speaks_within_five_seconds(tmp_path):
     finally:
         os.killpg(proc.pid, signal.SIGKILL)  # the demo and its compiling helper process
         proc.wait()
+        proc.stdout.close()
     assert elapsed < 5.0, f"first words after {elapsed:.1f} s"
 
 
