@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from camkit._kernels import detect as _kd
-from camkit._kernels import lattice as _kl
+from camkit._kernels import detect as detect_kernels
+from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_image
 from camkit.calib.targets import Checkerboard
 from camkit.errors import ParameterError
@@ -55,12 +55,12 @@ def _to_grey(image: np.ndarray) -> np.ndarray:
     img = as_image(image, "image")
     scale = 1.0 / np.iinfo(img.dtype).max if img.dtype.kind == "u" else 1.0
     g = np.empty(img.shape[:2])
-    _kd.grey_mean(img if img.ndim == 3 else img[:, :, None], scale, g)
+    detect_kernels.grey_mean(img if img.ndim == 3 else img[:, :, None], scale, g)
     # The 1st and 99th percentiles set black and white; on a large image a regular subsample of
     # about 250 000 pixels pins them down as well, at a fraction of the cost.
     step = max(1, int(np.sqrt(g.size / 250_000)))
     lo, hi = np.percentile(g[::step, ::step], [1, 99])
-    _kd.stretch(g, float(lo), 1.0 / max(float(hi - lo), 1e-12))
+    detect_kernels.stretch(g, float(lo), 1.0 / max(float(hi - lo), 1e-12))
     return g
 
 
@@ -68,8 +68,10 @@ def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray, interpolation: str) -
     """The image at points (x, y) of any shape, bilinear or bicubic, edges replicated."""
     out = np.empty(np.broadcast_shapes(x.shape, y.shape))
     xb, yb = np.broadcast_arrays(x, y)
-    _kl.sample_points(np.ascontiguousarray(img, dtype=np.float64), np.ascontiguousarray(xb, dtype=np.float64).ravel(),
-                      np.ascontiguousarray(yb, dtype=np.float64).ravel(), interpolation == "bicubic", out.ravel())
+    lattice_kernels.sample_points(np.ascontiguousarray(img, dtype=np.float64),
+                                  np.ascontiguousarray(xb, dtype=np.float64).ravel(),
+                                  np.ascontiguousarray(yb, dtype=np.float64).ravel(), interpolation == "bicubic",
+                                  out.ravel())
     return out
 
 
@@ -132,8 +134,8 @@ def _assemble(pts: np.ndarray, dirs: np.ndarray, max_side: int, img: np.ndarray,
     side = 2 * (max_side + 2) + 1
     owner = np.empty(len(pts), dtype=np.int64)
     coord = np.empty((len(pts), 2), dtype=np.int64)
-    n = _kl.assemble(np.ascontiguousarray(pts), np.ascontiguousarray(dirs), img, np.ascontiguousarray(contrast),
-                     order, side, owner, coord)
+    n = lattice_kernels.assemble(np.ascontiguousarray(pts), np.ascontiguousarray(dirs), img,
+                                 np.ascontiguousarray(contrast), order, side, owner, coord)
     out = []
     for k in range(n):
         idx = np.flatnonzero(owner == k)
@@ -265,7 +267,8 @@ def _refine_full(grey: np.ndarray, coarse: CornerDetection, factor: int, board: 
     origin = np.floor(c[seen]).astype(np.int64) - half
     tile = np.stack([np.arange(n_seen) % per_row, np.arange(n_seen) // per_row], axis=-1) * side
     mosaic = np.zeros((side * ((n_seen + per_row - 1) // per_row), side * per_row))
-    _kd.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, _SIGMA * factor, mosaic)
+    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, _SIGMA * factor,
+                                mosaic)
     shift = tile - origin
     refined, sig = _saddle_fit(mosaic, c[seen] + shift, r)
     refined -= shift
@@ -297,14 +300,14 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
         return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg)
 
     s = np.empty_like(grey)
-    _kd.gaussian_blur(grey, _SIGMA, s)
+    detect_kernels.gaussian_blur(grey, _SIGMA, s)
     R = np.empty_like(s)
-    _kd.saddle_response(s, R)
+    detect_kernels.saddle_response(s, R)
     rmax = float(R.max())
     if not rmax > 0:
         return fail("not found: no saddle points in the image")
     buf = np.empty((_MAX_CANDIDATES, 2), dtype=np.int64)
-    n = _kd.local_maxima(R, 3, 0.05 * rmax, buf)
+    n = detect_kernels.local_maxima(R, 3, 0.05 * rmax, buf)
     if n < 4:
         return fail("not found: fewer than 4 corner candidates")
     pts = buf[:n].astype(np.float64)
@@ -520,7 +523,7 @@ def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     keep = np.ones(len(g), dtype=bool)
     tol = np.full(len(g), max(0.6, 0.08 * spacing))
     if len(g):
-        _kl.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), tol, keep)
+        lattice_kernels.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), tol, keep)
     return keep
 
 
@@ -556,7 +559,7 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
         for side in (-1, 1):
             near_a = np.empty(int(ext[1 - axis]))
             far_a = np.empty_like(near_a)
-            _kl.border_samples(G, qc, s, axis, side, near_a, far_a)
+            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a)
             ok = np.isfinite(near_a) & np.isfinite(far_a)
             beyond = np.isinf(near_a) | np.isinf(far_a)
             if ok.sum() < 2 or beyond.sum() > ok.sum():
@@ -623,7 +626,7 @@ def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | No
     k, j = here[both], diag[both]
     probe = np.ascontiguousarray(q[k] + 0.5 * (q[k] - q[j]), dtype=np.float64)
     shade = np.empty(len(probe))
-    _kl.bilinear_points(s, probe, shade)
+    lattice_kernels.bilinear_points(s, probe, shade)
     mid = 0.5 * (shade.max() + shade.min())
     return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
 

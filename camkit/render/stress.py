@@ -190,10 +190,10 @@ def _pose(rng: np.random.Generator, camera: CameraModel, board: Checkerboard, sq
 
 
 def _blur(img: np.ndarray, sigma: float) -> np.ndarray:
-    from camkit._kernels import detect as _kd
+    from camkit._kernels import detect as detect_kernels
 
     out = np.empty_like(img)
-    _kd.gaussian_blur(np.ascontiguousarray(img), float(sigma), out)
+    detect_kernels.gaussian_blur(np.ascontiguousarray(img), float(sigma), out)
     return out
 
 
