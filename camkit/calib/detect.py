@@ -362,14 +362,13 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     def fail(msg: str, window: int = 0) -> tuple[CornerDetection, int]:
         return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg), 0
 
-    idx = np.arange(len(pts))
-    spacing = _lattice_spacing(g, pts[idx])
+    spacing = _lattice_spacing(g, pts)
     r = int(np.clip(round(spacing / 11.0), 2, 5))
-    q, sig = _saddle_fit(s, pts[idx], r)
-    moved = np.hypot(*(q - pts[idx]).T)
+    q, sig = _saddle_fit(s, pts, r)
+    moved = np.hypot(*(q - pts).T)
     keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & _fits_well(sig)
     keep[keep] = _consistent(g[keep], q[keep], spacing)
-    g, q, sig, symq = g[keep], q[keep], sig[keep], sym[idx][keep]
+    g, q, sig, symq = g[keep], q[keep], sig[keep], sym[keep]
     if len(g):
         part = _largest_part(g)
         g, q, sig, symq = g[part], q[part], sig[part], symq[part]
