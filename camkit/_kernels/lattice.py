@@ -35,13 +35,6 @@ def bilinear(img: np.ndarray, x: float, y: float) -> float:  # pragma: no cover 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def bilinear_points(img: np.ndarray, xy: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """``out[i] = bilinear(img, *xy[i])``."""
-    for i in range(xy.shape[0]):
-        out[i] = bilinear(img, xy[i, 0], xy[i, 1])
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
 def sample_points(img: np.ndarray, x: np.ndarray, y: np.ndarray, cubic: bool,
                   out: np.ndarray) -> None:  # pragma: no cover - numba
     """``out[i]`` = the image at (x[i], y[i]): bilinear, or bicubic (Keys, a = -0.5, as

@@ -233,10 +233,9 @@ _COARSER_FROM_PX = 40.0
 
 def _corner_spacing(corners: np.ndarray, board: Checkerboard) -> float:
     """Median distance between neighbouring labelled corners (NaN where none are)."""
-    grid = corners.reshape(board.inner_rows, board.inner_cols, 2)
-    steps = np.concatenate([np.hypot(*np.diff(grid, axis=1).reshape(-1, 2).T),
-                            np.hypot(*np.diff(grid, axis=0).reshape(-1, 2).T)])
-    return float(np.nanmedian(steps)) if np.isfinite(steps).any() else float("nan")
+    idx = np.flatnonzero(np.isfinite(corners).all(axis=1))
+    return _lattice_spacing(np.stack([idx % board.inner_cols, idx // board.inner_cols], axis=-1), corners[idx],
+                            default=float("nan"))
 
 
 def _half(img: np.ndarray) -> np.ndarray:
@@ -496,8 +495,10 @@ def _fits_well(sig: np.ndarray) -> np.ndarray:
     return ok
 
 
-def _lattice_spacing(g: np.ndarray, p: np.ndarray) -> float:
-    """Median image distance between lattice neighbours."""
+def _lattice_spacing(g: np.ndarray, p: np.ndarray, default: float = 11.0) -> float:
+    """Median image distance between lattice neighbours (``default`` where there are none)."""
+    if len(g) == 0:
+        return default
     G = _grid(g, margin=1)
     here = G[:-1, :-1]
     d = []
@@ -505,7 +506,7 @@ def _lattice_spacing(g: np.ndarray, p: np.ndarray) -> float:
         both = (here >= 0) & (there >= 0)
         d.append(np.hypot(*(p[there[both]] - p[here[both]]).T))
     d = np.concatenate(d)
-    return float(np.median(d)) if d.size else 11.0
+    return float(np.median(d)) if d.size else default
 
 
 def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
@@ -624,8 +625,7 @@ def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | No
         return None
     k, j = here[both], diag[both]
     probe = np.ascontiguousarray(q[k] + 0.5 * (q[k] - q[j]), dtype=np.float64)
-    shade = np.empty(len(probe))
-    lattice_kernels.bilinear_points(s, probe, shade)
+    shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear")
     mid = 0.5 * (shade.max() + shade.min())
     return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
 

@@ -20,7 +20,7 @@ def _v(H: np.ndarray, i: int, j: int) -> np.ndarray:
 #: negative focal length squared): the views are too few or too alike, or one is wrong.
 _NO_CAMERA = ("views: no camera explains these views of the board: they are too few or too alike (the board "
               "seen square-on, or always tilted the same way), or one detection is wrong. Photograph the board "
-              "tilted 10-50 degrees about different axes, near the image's corners and edges too, in 5 or more "
+              "tilted 10-50 degrees about different axes, near the image's corners and edges too, in 10 or more "
               "photos")
 
 
