@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 
 from benchmarks.harness import Case
-from camkit.calib import DEFAULT_FIX, Checkerboard, calibrate, detect_corners
+from camkit.calib import DEFAULT_FIX, calibrate
+from camkit.target import Checkerboard, detect_corners
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "bouguet_calib_example"
 BOARD = Checkerboard(12, 13, 0.030)

@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 
 from benchmarks.harness import Case, median_time
-from camkit.calib import Checkerboard, detect_corners
 from camkit.io import read_image
+from camkit.target import Checkerboard, detect_corners
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 BOUGUET = Checkerboard(12, 13, 0.030)

@@ -6,11 +6,11 @@ from __future__ import annotations
 import numpy as np
 
 from benchmarks.harness import Case, median_time
-from camkit.calib import Checkerboard
 from camkit.geometry import Pose
 from camkit.lens import LateralChromaticAberration
 from camkit.render import Defocus, Effects, Exposure, Motion, default_camera, render_checkerboard, render_view
 from camkit.sensor import EMVA1288Sensor
+from camkit.target import Checkerboard
 
 
 def cases() -> list[Case]:

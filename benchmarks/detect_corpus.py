@@ -24,8 +24,8 @@ from collections import Counter
 
 import numpy as np
 
-from camkit.calib import detect_corners
 from camkit.render.stress import StressView, stress_view
+from camkit.target import detect_corners
 
 
 def score(view: StressView, corners: np.ndarray) -> tuple[int, np.ndarray]:

@@ -24,8 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from camkit.calib import Checkerboard, detect_corners
 from camkit.io import read_image
+from camkit.target import Checkerboard, detect_corners
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "real_boards"
 

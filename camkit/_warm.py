@@ -31,10 +31,10 @@ def warm_pipeline() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot  # a first import builds matplotlib's font cache
 
-    from camkit.calib import Checkerboard, detect_corners
     from camkit.io import read_image, write_png
     from camkit.lens import BrownConrady
     from camkit.resample import resize
+    from camkit.target import Checkerboard, detect_corners
 
     # A fronto-parallel 5x4 board drawn with NumPy (no render kernels), 24 px squares.
     sq, cols, rows = 24, 6, 5

@@ -9,15 +9,15 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from camkit.calib.targets import Checkerboard
 from camkit.lens.base import CameraModel
 from camkit.pipeline import CalibrationJob, calibrate_files
 from camkit.render.effects import Defocus, Effects, Exposure
+from camkit.target import Checkerboard
 
 __all__ = ["DEMO_BOARD", "DemoResult", "demo_effects", "run_demo"]
 
 #: The demo's board: 9x6 inner corners, 30 mm squares.
-DEMO_BOARD = Checkerboard(9, 6, 0.030)
+DEMO_BOARD = Checkerboard.example()
 
 
 @dataclass(frozen=True, slots=True)

@@ -10,9 +10,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from camkit.calib.calibrate import CalibrationResult, calibrate_images
-from camkit.calib.targets import Checkerboard
 from camkit.errors import ImageFileError, ParameterError
 from camkit.lens.base import CameraModel
+from camkit.target import Checkerboard
 
 __all__ = ["CalibrationJob", "InputImages", "calibrate_files", "collect_images", "prepare_outputs"]
 

@@ -11,15 +11,14 @@ import numpy as np
 
 from camkit._kernels import calib as _kc
 from camkit._validate import as_points, as_positive_float, as_positive_int, check_choice
-from camkit.calib.detect import detect_corners
 from camkit.calib.homography import find_homography
-from camkit.calib.targets import Checkerboard
 from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.io.images import read_image
 from camkit.lens.base import CameraModel, get_model
+from camkit.target import Checkerboard, detect_corners
 
 __all__ = ["DEFAULT_FIX", "CalibrationResult", "calibrate", "calibrate_images", "default_fix", "held_parameters"]
 
@@ -98,7 +97,7 @@ class CalibrationResult:
         in the input (views with fewer than 4 corners, or where no board was found, are left
         out and listed in ``rejected_views``).
     rejected_views : list of (view, reason)
-    detections : list of CornerDetection or None
+    detections : list of Detection or None
         With :func:`calibrate_images`, the detection of every input image.
     object_points, image_points : list of ndarray
         The input, per input view.

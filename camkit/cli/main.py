@@ -142,9 +142,10 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from camkit.calib import Checkerboard, held_parameters
+    from camkit.calib import held_parameters
     from camkit.io.results import orientation_note
     from camkit.pipeline import calibrate_files, collect_images, prepare_outputs
+    from camkit.target import Checkerboard
 
     console = _console()
     board = Checkerboard(*args.board, args.square)
@@ -178,9 +179,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _cmd_board(args: argparse.Namespace) -> int:
-    from camkit.calib import Checkerboard
-    from camkit.calib.board_file import board_layout, parse_paper, write_board
     from camkit.pipeline import prepare_outputs
+    from camkit.target import Checkerboard
+    from camkit.target.sheet import board_layout, parse_paper, write_board
 
     board = Checkerboard(*args.inner, args.square, margin=args.margin)
     paper = parse_paper(args.paper) if args.paper else None
@@ -326,10 +327,10 @@ def _seconds(text: str) -> float:
 
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
-    from camkit.calib import Checkerboard
     from camkit.lens import LateralChromaticAberration
     from camkit.render import Defocus, Effects, Exposure, Motion, default_camera, simulate_dataset
     from camkit.sensor import EMVA1288Sensor
+    from camkit.target import Checkerboard
 
     camera = default_camera(args.model)
     board = Checkerboard(*args.board, args.square)

@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
+from camkit._atomic import write_atomic
 from camkit.errors import ParameterError
-from camkit.io._atomic import write_atomic
 from camkit.lens.base import MODELS, CameraModel
 from camkit.lens.brown_conrady import BrownConrady
 from camkit.lens.kannala_brandt import KannalaBrandt

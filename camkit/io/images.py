@@ -23,9 +23,9 @@ from typing import Any
 
 import numpy as np
 
+from camkit._atomic import write_atomic
 from camkit._validate import as_image, as_positive_int
 from camkit.errors import ImageFileError, ParameterError, ShapeError
-from camkit.io._atomic import write_atomic
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",

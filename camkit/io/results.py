@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
+from camkit._atomic import write_atomic
 from camkit.errors import ParameterError
-from camkit.io._atomic import write_atomic
 from camkit.io.camera_files import _camera_dict
 
 __all__ = ["RESULTS_FORMAT_VERSION", "camera_info", "orientation_note", "results_to_dict", "write_results"]

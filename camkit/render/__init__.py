@@ -2,7 +2,7 @@
 
 from camkit.render.dataset import camera_to_dict, default_camera, plan_views, simulate_dataset
 from camkit.render.effects import Defocus, Effects, Exposure, Motion, render_view
-from camkit.render.target import RenderTruth, render_checkerboard, render_texture
+from camkit.render.target import RenderTruth, render_checkerboard, render_target, render_texture
 
 __all__ = [
     "Defocus",
@@ -14,6 +14,7 @@ __all__ = [
     "default_camera",
     "plan_views",
     "render_checkerboard",
+    "render_target",
     "render_texture",
     "render_view",
     "simulate_dataset",

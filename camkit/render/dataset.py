@@ -10,15 +10,15 @@ from typing import Any
 
 import numpy as np
 
+from camkit._atomic import write_atomic
 from camkit._validate import as_positive_int
-from camkit.calib.targets import Checkerboard
 from camkit.errors import EstimationError, ParameterError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
-from camkit.io._atomic import write_atomic
 from camkit.io.images import write_png
 from camkit.lens.base import CameraModel
 from camkit.render.effects import Effects, render_view
+from camkit.target import Checkerboard
 
 __all__ = ["camera_to_dict", "default_camera", "plan_views", "simulate_dataset"]
 

@@ -10,16 +10,16 @@ import numpy as np
 
 from camkit._kernels import render as _kr
 from camkit._validate import as_matrix, as_positive_float, as_positive_int, check_choice
-from camkit.calib.targets import Checkerboard
 from camkit.errors import ParameterError
 from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
 from camkit.lens.chromatic import LateralChromaticAberration
 from camkit.optics.thin_lens import circle_of_confusion
-from camkit.render.target import RenderTruth, _render_board, camera_rays, render_checkerboard
+from camkit.render.target import RenderTruth, _render_board, camera_rays, render_target
 from camkit.sensor.cfa import PATTERNS, mosaic
 from camkit.sensor.demosaic import DEMOSAIC_METHODS, demosaic
 from camkit.sensor.noise import EMVA1288Sensor
+from camkit.target import Target
 
 __all__ = ["Defocus", "Effects", "Exposure", "Motion", "render_view"]
 
@@ -126,12 +126,13 @@ class Effects:
         return self.colour or self.chromatic is not None or self.cfa is not None
 
 
-def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard,
+def render_view(camera: CameraModel, cam_from_target: Pose, board: Target,
                 effects: Effects | None = None, *, rng: np.random.Generator | None = None,
                 supersample: int = 16) -> tuple[np.ndarray, RenderTruth]:
-    """Render a checkerboard view with the chosen physical effects, in the order light meets
-    them: motion during the exposure, defocus, lateral chromatic aberration, exposure, then
-    the sensor (colour filter mosaic, noise, ADC, demosaicing).
+    """Render a view of a target (a checkerboard or any registered target) with the chosen
+    physical effects, in the order light meets them: motion during the exposure, defocus,
+    lateral chromatic aberration, exposure, then the sensor (colour filter mosaic, noise, ADC,
+    demosaicing).
 
     Returns
     -------
@@ -149,7 +150,7 @@ def render_view(camera: CameraModel, cam_from_target: Pose, board: Checkerboard,
             f"rng: expected a numpy.random.Generator (the sensor is noisy), got {type(rng).__name__}"
         )
     if fx.motion is None:
-        img, truth = render_checkerboard(camera, cam_from_target, board, supersample=supersample)
+        img, truth = render_target(camera, cam_from_target, board, supersample=supersample)
     else:
         poses = fx.motion.poses(cam_from_target)
         rays = camera_rays(camera)

@@ -24,11 +24,11 @@ from typing import Any
 import numpy as np
 
 from camkit._validate import as_points, as_positive_float
-from camkit.calib.targets import Checkerboard
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens.base import CameraModel
+from camkit.target import Checkerboard
 
 __all__ = ["StressView", "acceptable_labellings", "stress_view"]
 

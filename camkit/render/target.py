@@ -1,4 +1,8 @@
-"""Render what a camera sees of a planar checkerboard, with exact ground truth."""
+"""Render what a camera sees of a planar target, with exact ground truth.
+
+A checkerboard is shaded analytically; any other :class:`~camkit.target.Target` through its
+printed sheet (:meth:`~camkit.target.Target.sheet`), rasterised finely and averaged over each
+pixel's footprint."""
 
 from __future__ import annotations
 
@@ -11,12 +15,12 @@ import numpy as np
 
 from camkit._kernels import render as _kr
 from camkit._validate import as_finite_float, as_image, as_positive_int
-from camkit.calib.targets import Checkerboard
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
+from camkit.target import Checkerboard, Target
 
-__all__ = ["RenderTruth", "render_checkerboard", "render_texture"]
+__all__ = ["RenderTruth", "render_checkerboard", "render_target", "render_texture"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -26,13 +30,14 @@ class RenderTruth:
     Attributes
     ----------
     corners_px : ndarray, (N, 2)
-        Every inner corner projected through the camera model (NaN where not projectable), in
-        the order of ``board.object_points()``.
+        Every target point projected through the camera model (NaN where not projectable), in
+        the order of ``board.object_points()`` (for a checkerboard, its inner corners).
     visible : ndarray, (N,) bool
         Projectable and inside the image (pixel centres' extent ``[0, W-1] x [0, H-1]``).
     cam_from_target : Pose
     camera : CameraModel
-    board : Checkerboard
+    board : Target
+        The target rendered (a Checkerboard or any other registered target).
     depth : ndarray, (H, W)
         Camera-frame z of the board point each pixel sees (NaN off the board's plane); what
         defocus is computed from.
@@ -42,7 +47,7 @@ class RenderTruth:
     visible: np.ndarray
     cam_from_target: Pose
     camera: CameraModel
-    board: Checkerboard
+    board: Target
     depth: np.ndarray
 
 
@@ -158,6 +163,19 @@ def render_checkerboard(camera: CameraModel, cam_from_target: Pose, board: Check
     return _render_board(camera, cam_from_target, board, supersample, black, white, background, None)
 
 
+def render_target(camera: CameraModel, cam_from_target: Pose, target: Target, *, supersample: int = 16,
+                  black: float = 0.05, white: float = 0.95, background: Any = 0.5) -> tuple[np.ndarray, RenderTruth]:
+    """The image (reflectance, float64 in [0, 1]) a camera forms of any target, and the truth.
+
+    A :class:`~camkit.target.Checkerboard` goes through :func:`render_checkerboard`; any other
+    target's sheet is rasterised at 64 pixels across its smallest mark and averaged over each
+    pixel's footprint (``min(supersample, 8)^2`` samples). Parameters as
+    :func:`render_checkerboard`; ``truth.corners_px`` holds every point of
+    ``target.object_points()``.
+    """
+    return _render_board(camera, cam_from_target, target, supersample, black, white, background, None)
+
+
 @functools.lru_cache(maxsize=16)
 def edge_lattice(supersample: int) -> tuple[int, int]:
     """``(N, g)``: N = supersample^2 points ``((k + 1/2) / N, ((k g mod N) + 1/2) / N)``, a
@@ -191,17 +209,38 @@ def _render_board(camera: CameraModel, cam_from_target: Pose, board: Checkerboar
         raise ParameterError(f"camera: expected a camkit camera model, got {type(camera).__name__}")
     if not isinstance(cam_from_target, Pose):
         raise ParameterError(f"cam_from_target: expected a Pose, got {type(cam_from_target).__name__}")
-    if not isinstance(board, Checkerboard):
-        raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
+    if not isinstance(board, Target):
+        raise ParameterError(f"board: expected a camkit target (e.g. a Checkerboard), got {type(board).__name__}")
     S = as_positive_int(supersample, "supersample")
     levels = [_check_level(v, n) for v, n in ((black, "black"), (white, "white"))]
     W, H = camera.width, camera.height
     bg = _background(background, H, W, 1)[:, :, 0].copy()
     uv, depth = _plane_uv(camera, cam_from_target, rays)
-    ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
     image = np.empty((H, W))
-    _kr.shade(uv, board.square, ext, levels[0], levels[1], bg, *edge_lattice(S), image)
+    if isinstance(board, Checkerboard):
+        ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
+        _kr.shade(uv, board.square, ext, levels[0], levels[1], bg, *edge_lattice(S), image)
+    else:
+        _shade_sheet(board, uv, levels[0], levels[1], bg, min(S, 8), image)
     corners = camera.project(cam_from_target.apply(board.object_points()))
     visible = (np.isfinite(corners).all(axis=-1) & (corners[:, 0] >= 0) & (corners[:, 0] <= W - 1)
                & (corners[:, 1] >= 0) & (corners[:, 1] <= H - 1))
     return image, RenderTruth(corners, visible, cam_from_target, camera, board, depth)
+
+
+def _shade_sheet(target: Target, uv: np.ndarray, black: float, white: float, bg: np.ndarray, S: int,
+                 out: np.ndarray) -> None:
+    """Shade ``out`` (H, W) from the target's sheet, rasterised at 64 pixels across its smallest
+    mark (at most 4096 pixels a side), seen at the plane coordinates ``uv``."""
+    sheet = target.sheet()
+    u0, v0, u1, v1 = sheet.extent
+    b = sheet.black
+    mark = float(np.min(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]))) if len(b) else u1 - u0
+    density = min(64.0 / mark, 4096.0 / max(u1 - u0, v1 - v0))
+    tex = np.where(sheet.raster(density) == 0, black, white)[:, :, None]
+    # The raster's size is rounded to whole pixels: the texture spans exactly that many.
+    size_u, size_v = tex.shape[1] / density, tex.shape[0] / density
+    shifted = np.ascontiguousarray(uv - [u0, v0])
+    res = np.empty(out.shape + (1,))
+    _kr.shade_texture(shifted, np.ascontiguousarray(tex), size_u, size_v, np.ascontiguousarray(bg[:, :, None]), S, res)
+    out[:] = res[:, :, 0]

@@ -14,9 +14,9 @@ from typing import Any
 import numpy as np
 
 from camkit import __version__
+from camkit._atomic import write_atomic
 from camkit._validate import as_matrix, as_points, as_positive_float
 from camkit.errors import ParameterError
-from camkit.io._atomic import write_atomic
 from camkit.lens.base import CameraModel
 
 __all__ = ["projection_uncertainty", "write_report"]

@@ -8,7 +8,6 @@ import pytest
 
 from camkit.calib import (
     DEFAULT_FIX,
-    Checkerboard,
     calibrate,
     calibrate_images,
     default_fix,
@@ -19,6 +18,7 @@ from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry import Pose
 from camkit.lens import KannalaBrandt
 from camkit.render import default_camera, plan_views, render_checkerboard
+from camkit.target import Checkerboard
 
 BOARD = Checkerboard(9, 6, 0.03)
 OBJ = BOARD.object_points()

@@ -6,10 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard, solve_pnp
+from camkit.calib import solve_pnp
 from camkit.errors import EstimationError
 from camkit.geometry import Pose
 from camkit.render import default_camera
+from camkit.target import Checkerboard
 
 BOARD = Checkerboard(9, 6, 0.03)
 

@@ -13,11 +13,11 @@ import sys
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard, detect_corners
 from camkit.cli.main import main
 from camkit.io import load_camera, read_image, save_camera, write_png
 from camkit.render import default_camera, plan_views, render_checkerboard
 from camkit.resample import optimal_pinhole
+from camkit.target import Checkerboard, detect_corners
 
 
 @pytest.fixture(scope="module")
@@ -363,7 +363,7 @@ def test_export_every_format(tmp_path, capsys):
 
 def test_interrupt_leaves_no_partial_file(tmp_path, monkeypatch, capsys):
     """Ctrl-C while a file is being written: the old file stays whole and no temporary is left."""
-    import camkit.io._atomic as atomic
+    import camkit._atomic as atomic
 
     target = tmp_path / "camera.json"
     target.write_text("old")

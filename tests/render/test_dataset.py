@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from camkit.calib import Checkerboard
 from camkit.cli.main import main
 from camkit.errors import EstimationError
 from camkit.geometry import Pose
 from camkit.render import Effects, Exposure, default_camera, plan_views, simulate_dataset
 from camkit.sensor import EMVA1288Sensor
+from camkit.target import Checkerboard
 
 BOARD = Checkerboard(9, 6, 0.03)
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard
 from camkit.errors import ParameterError
 from camkit.geometry import Pose
 from camkit.lens import BrownConrady, LateralChromaticAberration
 from camkit.optics import circle_of_confusion
 from camkit.render import Defocus, Effects, Exposure, Motion, render_checkerboard, render_view
 from camkit.sensor import EMVA1288Sensor
+from camkit.target import Checkerboard
 
 CAM = BrownConrady(fx=500.0, fy=500.0, cx=319.5, cy=239.5, width=640, height=480, k1=-0.15)
 BOARD = Checkerboard(7, 5, 0.04)

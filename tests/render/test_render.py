@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.ndimage import gaussian_filter, map_coordinates
 
-from camkit.calib import Checkerboard
 from camkit.errors import ParameterError
 from camkit.geometry import Pose
 from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
 from camkit.render import render_checkerboard
+from camkit.target import Checkerboard
 
 PIN = Pinhole(fx=1000.0, fy=1000.0, cx=639.5, cy=479.5, width=1280, height=960)
 BC = BrownConrady(fx=1000.0, fy=1000.0, cx=639.5, cy=479.5, width=1280, height=960, k1=-0.2, k2=0.05)

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens import Pinhole
 from camkit.render import render_checkerboard
 from camkit.render.stress import acceptable_labellings, stress_view
+from camkit.target import Checkerboard
 
 CAM = Pinhole(fx=800.0, fy=800.0, cx=319.5, cy=239.5, width=640, height=480)
 

@@ -8,11 +8,12 @@ import json
 import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard, calibrate
+from camkit.calib import calibrate
 from camkit.errors import CamkitError, ParameterError
 from camkit.io.results import results_to_dict, write_results
 from camkit.render import default_camera, plan_views
 from camkit.report import projection_uncertainty, write_report
+from camkit.target import Checkerboard
 
 BOARD = Checkerboard(9, 6, 0.03)
 CAM = default_camera("brown-conrady")

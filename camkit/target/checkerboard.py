@@ -1,52 +1,103 @@
-"""Checkerboard corner detection: X-corners, the board's lattice, sub-pixel saddle points."""
+"""The checkerboard target and its detector: X-corners, the board's lattice, sub-pixel saddle points."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Self
 
 import numpy as np
 
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
-from camkit._validate import as_image
-from camkit.calib.targets import Checkerboard
+from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
 from camkit.errors import ParameterError
+from camkit.target.base import Detection, Sheet, Target, register_target
 
-__all__ = ["CornerDetection", "detect_corners"]
+__all__ = ["Checkerboard", "detect_corners"]
+
+
+@register_target
+@dataclass(frozen=True, slots=True)
+class Checkerboard(Target):
+    """A planar checkerboard: ``inner_cols x inner_rows`` inner corners, squares of side
+    ``square`` metres, a white margin around the outer squares.
+
+    The board frame has its origin at the first inner corner, x along the columns, y along
+    the rows, z = 0 on the board (so z points away from a camera that sees its printed face
+    in the usual orientation). Inner corner ``(col, row)`` is at ``(col * square, row *
+    square, 0)``. There are ``(inner_cols + 1) x (inner_rows + 1)`` squares; the one at the top
+    left (containing ``(-square/2, -square/2)``) is black.
+
+    Examples
+    --------
+    >>> board = Checkerboard(9, 6, 0.025)
+    >>> board.object_points().shape
+    (54, 3)
+    >>> board.object_points()[10]    # column 1 of row 1
+    array([0.025, 0.025, 0.   ])
+    """
+
+    inner_cols: int
+    inner_rows: int
+    square: float
+    margin: float | None = None
+
+    def __post_init__(self) -> None:
+        cols = as_positive_int(self.inner_cols, "inner_cols")
+        rows = as_positive_int(self.inner_rows, "inner_rows")
+        if cols < 2 or rows < 2:
+            raise ParameterError(
+                f"inner_cols, inner_rows: expected at least 2x2 inner corners, got {cols}x{rows}"
+            )
+        object.__setattr__(self, "inner_cols", cols)
+        object.__setattr__(self, "inner_rows", rows)
+        object.__setattr__(self, "square", as_positive_float(self.square, "square"))
+        margin = self.square if self.margin is None else as_finite_float(self.margin, "margin")
+        if margin < 0:
+            raise ParameterError(f"margin: expected a value >= 0, got {margin}")
+        object.__setattr__(self, "margin", margin)
+
+    @property
+    def n_corners(self) -> int:
+        return self.inner_cols * self.inner_rows
+
+    def object_points(self) -> np.ndarray:
+        """Inner corners in the board frame, (N, 3), row by row (column index fastest)."""
+        c, r = np.meshgrid(np.arange(self.inner_cols), np.arange(self.inner_rows))
+        return np.stack([c.ravel() * self.square, r.ravel() * self.square, np.zeros(c.size)], axis=-1)
+
+    name = "checkerboard"
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(u_min, v_min, u_max, v_max)`` of the printed sheet (squares plus margin), metres."""
+        s, m = self.square, self.margin
+        return (-s - m, -s - m, self.inner_cols * s + m, self.inner_rows * s + m)
+
+    def sheet(self) -> Sheet:
+        """The printed face: ``(inner_cols + 1) x (inner_rows + 1)`` squares, the top-left one
+        black, and the white margin around them."""
+        s = self.square
+        r, c = np.mgrid[0:self.inner_rows + 1, 0:self.inner_cols + 1]
+        black = ((r + c) % 2 == 0).ravel()
+        u0, v0 = (c.ravel()[black] - 1) * s, (r.ravel()[black] - 1) * s
+        label = (f"checkerboard {self.inner_cols}x{self.inner_rows} inner corners "
+                 f"({self.inner_cols + 1}x{self.inner_rows + 1} squares), squares {s * 1000.0:g} mm. "
+                 "Print at 100 % (actual size) and measure a square.")
+        return Sheet(self.extent(), np.stack([u0, v0, u0 + s, v0 + s], axis=-1), label)
+
+    def detect(self, image: np.ndarray) -> Detection:
+        """The inner corners in ``image``: :func:`detect_corners`."""
+        return detect_corners(image, self)
+
+    @classmethod
+    def example(cls) -> Self:
+        """The board the demo uses: 9 x 6 inner corners, 30 mm squares."""
+        return cls(9, 6, 0.030)
+
 
 _SIGMA = 1.5  # smoothing for the saddle response (pixels)
 _PROFILE_RADIUS = 4.0  # circle on which an X-corner shows four alternating sectors
 _MAX_CANDIDATES = 5000
-
-
-@dataclass(frozen=True, slots=True, eq=False)
-class CornerDetection:
-    """The corners found in one image.
-
-    Attributes
-    ----------
-    found : bool
-        The board's lattice was identified (some corners may still be missing).
-    corners : ndarray, (n_corners, 2)
-        Pixel positions in the order of ``board.object_points()``; NaN rows for corners not
-        seen (covered by fingers, outside the image).
-    sigma_px : ndarray, (n_corners,)
-        Per-corner standard deviation of the position from the sub-pixel fit (NaN where
-        not seen).
-    window_px : int
-        Half-size of the sub-pixel window chosen for this image.
-    message : str
-    """
-
-    found: bool
-    corners: np.ndarray
-    sigma_px: np.ndarray
-    window_px: int
-    message: str
-
-    @property
-    def n_found(self) -> int:
-        return int(np.isfinite(self.corners).all(axis=1).sum())
 
 
 def _to_grey(image: np.ndarray) -> np.ndarray:
@@ -150,7 +201,7 @@ def _grid(g: np.ndarray, margin: int = 0) -> np.ndarray:
     return G
 
 
-def detect_corners(image: np.ndarray, board: Checkerboard) -> CornerDetection:
+def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     """Find the inner corners of a checkerboard, in the order of ``board.object_points()``.
 
     1. X-corners: local maxima of the saddle response ``-(Ixx Iyy - Ixy^2)`` of the image
@@ -245,7 +296,7 @@ def _half(img: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
 
 
-def _refine_full(grey: np.ndarray, coarse: CornerDetection, factor: int, board: Checkerboard) -> CornerDetection:
+def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard) -> Detection:
     """Corners found at 1/factor resolution, refined on the full image: positions mapped back
     (x_full = (x + 0.5) * factor - 0.5), then the saddle fit with the smoothing and window scaled
     by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN)."""
@@ -281,22 +332,22 @@ def _refine_full(grey: np.ndarray, coarse: CornerDetection, factor: int, board: 
     out[keep[good]] = refined[ok][good]
     sigma[keep[good]] = sig[ok][good]
     if _bent_fraction(out.reshape(rows, cols, 2)) > 0.1:
-        return CornerDetection(False, np.full_like(c, np.nan), np.full(len(c), np.nan), r,
+        return Detection(False, np.full_like(c, np.nan), np.full(len(c), np.nan), r,
                                f"not found: the lattice found at 1/{factor} resolution is inconsistent at full "
                                "resolution")
     found = int(np.isfinite(out).all(axis=1).sum())
-    return CornerDetection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
+    return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
                            f"refined at full resolution (window {r} px)")
 
 
-def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
+def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
     """Steps 1-4 of :func:`detect_corners` on one resolution."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
     empty = np.full((n_corners, 2), np.nan)
 
-    def fail(msg: str, window: int = 0) -> CornerDetection:
-        return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg)
+    def fail(msg: str, window: int = 0) -> Detection:
+        return Detection(False, empty.copy(), np.full(n_corners, np.nan), window, msg)
 
     s = np.empty_like(grey)
     detect_kernels.gaussian_blur(grey, _SIGMA, s)
@@ -343,14 +394,14 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> CornerDetection:
     passed = sorted(((b, d.n_found, -i) for i, (d, b) in enumerate(results) if d.found), reverse=True)
     if len(passed) > 1 and passed[0][0] == passed[1][0]:
         det = results[-passed[0][2]][0]
-        return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), det.window_px,
+        return Detection(False, empty.copy(), np.full(n_corners, np.nan), det.window_px,
                                f"not found: {len(passed)} patterns in the image pass as the {cols}x{rows} board, "
                                "with their borders seen on as many sides (another board in view?)")
     return results[-passed[0][2]][0] if passed else results[0][0]
 
 
 def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarray, g: np.ndarray,
-           board: Checkerboard) -> tuple[CornerDetection, int]:
+           board: Checkerboard) -> tuple[Detection, int]:
     """Steps 3-6 of :func:`detect_corners` on one lattice (candidates ``pts``, lattice
     coordinates ``g``): the detection, and on how many of its four sides the board's border
     was seen."""
@@ -358,8 +409,8 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     n_corners = cols * rows
     empty = np.full((n_corners, 2), np.nan)
 
-    def fail(msg: str, window: int = 0) -> tuple[CornerDetection, int]:
-        return CornerDetection(False, empty.copy(), np.full(n_corners, np.nan), window, msg), 0
+    def fail(msg: str, window: int = 0) -> tuple[Detection, int]:
+        return Detection(False, empty.copy(), np.full(n_corners, np.nan), window, msg), 0
 
     spacing = _lattice_spacing(g, pts)
     r = int(np.clip(round(spacing / 11.0), 2, 5))
@@ -478,7 +529,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     out[~inside] = np.nan
     sigma[~inside] = np.nan
     found = int(np.isfinite(out).all(axis=1).sum())
-    return CornerDetection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)"), borders
+    return Detection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)"), borders
 
 
 #: A corner whose saddle fit leaves residuals this many times the board's median (its sigma)

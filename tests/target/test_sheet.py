@@ -2,22 +2,37 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from camkit.calib import Checkerboard
-from camkit.calib.board_file import board_squares, write_board
 from camkit.errors import CamkitError
+from camkit.target import Checkerboard
+from camkit.target.sheet import write_board
 
 
 def test_black_squares_are_half_the_board_with_black_top_left():
     board = Checkerboard(9, 6, 0.025)
-    squares = board_squares(board)
-    assert len(squares) == 35 and squares[0] == (0.025, 0.025)
+    sheet = board.sheet()
+    assert len(sheet.black) == 35  # 10 x 7 squares, the top-left one black
+    np.testing.assert_allclose(sheet.black[0], [-0.025, -0.025, 0.0, 0.0])  # it holds (-s/2, -s/2)
+    np.testing.assert_allclose(sheet.extent, [-0.05, -0.05, 0.25, 0.175])  # a square's margin around
+
+
+def test_raster_of_the_sheet_is_the_checker_pattern():
+    """The sheet at 1 px per mm: each square 25 px, black where (row + col) is even, the
+    margin white; and an inner corner's four squares alternate around (col, row) * 25 mm."""
+    board = Checkerboard(4, 3, 0.025)
+    img = board.sheet().raster(1000.0)
+    assert img.shape == (4 * 25 + 2 * 25, 5 * 25 + 2 * 25)
+    centres = img[25 + 12:25 + 4 * 25:25, 25 + 12:25 + 5 * 25:25]
+    r, c = np.mgrid[0:4, 0:5]
+    np.testing.assert_array_equal(centres == 0, (r + c) % 2 == 0)
+    assert (img[:25] == 255).all() and (img[:, -25:] == 255).all()
 
 
 @pytest.mark.parametrize("name,board,dpi,match", [
     ("b.jpg", Checkerboard(9, 6, 0.025), 300, "path: expected a name ending in .pdf, .svg or .png"),
-    ("b.pdf", (9, 6), 300, "board: expected a Checkerboard"),
+    ("b.pdf", (9, 6), 300, "board: expected a camkit target"),
     ("b.png", Checkerboard(9, 6, 0.025), 0, "dpi"),
 ])
 def test_bad_input(tmp_path, name, board, dpi, match):

@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camkit.calib import DEFAULT_FIX, Checkerboard, calibrate, calibrate_images, detect_corners
+from camkit.calib import DEFAULT_FIX, calibrate, calibrate_images
 from camkit.errors import ParameterError, ShapeError
 from camkit.render import default_camera, plan_views, render_checkerboard
+from camkit.target import Checkerboard, detect_corners
 
 # Published result of the Camera Calibration Toolbox on this set (REFERENCE.md beside the data).
 REF = {"fx": 657.46290, "fy": 657.94673, "cx": 303.13665, "cy": 242.56935}

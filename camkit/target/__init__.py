@@ -1,0 +1,21 @@
+"""Calibration targets: the Target contract, its registry, the checkerboard and printable sheets."""
+
+from camkit.target.base import TARGETS, Detection, Sheet, Target, get_target, register_target
+from camkit.target.checkerboard import Checkerboard, detect_corners
+from camkit.target.sheet import PAPER_SIZES_MM, BoardLayout, board_layout, parse_paper, write_board
+
+__all__ = [
+    "PAPER_SIZES_MM",
+    "TARGETS",
+    "BoardLayout",
+    "Checkerboard",
+    "Detection",
+    "Sheet",
+    "Target",
+    "board_layout",
+    "detect_corners",
+    "get_target",
+    "parse_paper",
+    "register_target",
+    "write_board",
+]

@@ -1,0 +1,176 @@
+"""The contract every calibration target keeps, and the registry of targets by name.
+
+A target is a frozen, slotted dataclass that knows three things about itself:
+
+- its points: ``object_points() -> (N, 3)`` in the target frame (metres, z = 0 on a planar
+  target), point ``i`` carrying id ``i``;
+- how to find them: ``detect(image) -> Detection``, the points seen with their ids, pixels
+  and per-point sigma, or "not found" with the reason;
+- what to print: ``sheet() -> Sheet``, its black marks on white paper in the target frame,
+  from which :mod:`camkit.target.sheet` writes PDF, SVG and PNG files and :mod:`camkit.render`
+  renders any target it has no faster path for.
+
+Calibration, the simulator and the board printer see targets only through this contract. A new
+target is one module with one class and its ``@register_target`` line (docs/extending.md).
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass
+from typing import Any, ClassVar, Self, TypeVar
+
+import numpy as np
+
+from camkit.errors import ParameterError
+
+__all__ = ["TARGETS", "Detection", "Sheet", "Target", "get_target", "register_target"]
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Detection:
+    """The points of a target found in one image.
+
+    Attributes
+    ----------
+    found : bool
+        The target was identified (some points may still be missing).
+    corners : ndarray, (N, 2)
+        Pixel positions in the order of ``target.object_points()`` (row ``i`` is point id
+        ``i``); NaN rows for points not seen (covered, outside the image, not checked).
+    sigma_px : ndarray, (N,)
+        Per-point standard deviation of the position from the sub-pixel fit (NaN where not
+        seen).
+    window_px : int
+        Half-size of the sub-pixel window chosen for this image (0 where none was).
+    message : str
+        What was found, or why nothing was.
+    """
+
+    found: bool
+    corners: np.ndarray
+    sigma_px: np.ndarray
+    window_px: int
+    message: str
+
+    @property
+    def ids(self) -> np.ndarray:
+        """Ids of the points seen, (M,) int64, ascending."""
+        return np.flatnonzero(np.isfinite(self.corners).all(axis=1))
+
+    @property
+    def pixels(self) -> np.ndarray:
+        """Pixel positions of the points seen, (M, 2), in the order of :attr:`ids`."""
+        return self.corners[self.ids]
+
+    @property
+    def sigma(self) -> np.ndarray:
+        """Per-point sigma of the points seen, (M,), in the order of :attr:`ids`."""
+        return self.sigma_px[self.ids]
+
+    @property
+    def n_found(self) -> int:
+        return int(np.isfinite(self.corners).all(axis=1).sum())
+
+    @classmethod
+    def not_found(cls, n_points: int, message: str, window_px: int = 0) -> Detection:
+        """A detection of nothing, with the reason."""
+        return cls(False, np.full((n_points, 2), np.nan), np.full(n_points, np.nan), window_px, message)
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class Sheet:
+    """A target's printed face: black axis-aligned rectangles on white paper.
+
+    Attributes
+    ----------
+    extent : tuple of 4 floats
+        ``(u_min, v_min, u_max, v_max)`` of the paper in the target frame, metres (x along u,
+        y along v; the target's z = 0 plane).
+    black : ndarray, (K, 4)
+        ``(u0, v0, u1, v1)`` of each black rectangle, metres, target frame.
+    label : str
+        One line printed under the target (what it is, its size, "print at 100 %").
+    """
+
+    extent: tuple[float, float, float, float]
+    black: np.ndarray
+    label: str
+
+    def raster(self, px_per_m: float) -> np.ndarray:
+        """The sheet as a uint8 image (255 white, 0 black), ``px_per_m`` pixels per metre, the
+        pixel grid aligned with the extent's top-left (pixel ``(i, j)`` covers ``u_min + [j,
+        j + 1] / px_per_m``). Rectangle edges are rounded to whole pixels: choose a density
+        where the marks' sizes are whole numbers of pixels for an exact raster."""
+        u0, v0, u1, v1 = self.extent
+        W = max(1, round((u1 - u0) * px_per_m))
+        H = max(1, round((v1 - v0) * px_per_m))
+        img = np.full((H, W), 255, dtype=np.uint8)
+        r = np.rint((self.black - [u0, v0, u0, v0]) * px_per_m).astype(np.int64)
+        r[:, [0, 2]] = np.clip(r[:, [0, 2]], 0, W)
+        r[:, [1, 3]] = np.clip(r[:, [1, 3]], 0, H)
+        for a, b, c, d in r:  # one slice per mark, not per pixel
+            img[b:d, a:c] = 0
+        return img
+
+
+class Target(abc.ABC):
+    """Base of every calibration target; see the module docstring for the contract.
+
+    Subclasses are frozen, slotted dataclasses with the class attribute ``name`` (the registry
+    key) and implement :meth:`object_points`, :meth:`detect`, :meth:`sheet` and
+    :meth:`example`.
+    """
+
+    __slots__ = ()
+
+    name: ClassVar[str]
+
+    @abc.abstractmethod
+    def object_points(self) -> np.ndarray:
+        """The target's points in its own frame, (N, 3), metres; row ``i`` is id ``i``."""
+
+    @property
+    def n_points(self) -> int:
+        return int(self.object_points().shape[0])
+
+    @abc.abstractmethod
+    def detect(self, image: np.ndarray) -> Detection:
+        """The target's points in ``image`` (grey or colour, any dtype camkit reads)."""
+
+    @abc.abstractmethod
+    def sheet(self) -> Sheet:
+        """The printed face."""
+
+    def extent(self) -> tuple[float, float, float, float]:
+        """``(u_min, v_min, u_max, v_max)`` of the printed sheet, metres, target frame."""
+        return self.sheet().extent
+
+    @classmethod
+    @abc.abstractmethod
+    def example(cls) -> Self:
+        """A typical instance: what the command line, the demo and the contract test use."""
+
+
+TARGETS: dict[str, type[Target]] = {}
+
+_T = TypeVar("_T", bound="type[Target]")
+
+
+def register_target(cls: _T) -> _T:
+    """Class decorator: add a target to :data:`TARGETS` under its ``name``."""
+    old = TARGETS.get(cls.name)
+    if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
+        raise ParameterError(f"target name {cls.name!r} is already registered by {old.__qualname__}")
+    TARGETS[cls.name] = cls
+    return cls
+
+
+def get_target(name: Any) -> type[Target]:
+    """The target class registered as ``name`` (for example ``"checkerboard"``)."""
+    try:
+        return TARGETS[name]
+    except (KeyError, TypeError):
+        raise ParameterError(
+            f"name: expected one of {', '.join(map(repr, sorted(TARGETS)))}, got {name!r}"
+        ) from None
