@@ -30,12 +30,6 @@ __all__ = ["CAMERA_FORMAT_VERSION", "EXPORT_FORMATS", "export_camera", "load_cam
 CAMERA_FORMAT_VERSION = 1
 
 
-def _camera_dict(model: CameraModel) -> dict[str, Any]:
-    out: dict[str, Any] = {"type": model.name, "width": model.width, "height": model.height}
-    out.update({n: float(getattr(model, n)) for n in model.param_names})
-    return out
-
-
 def save_camera(path: str | os.PathLike, model: CameraModel, **extra: Any) -> Path:
     """Write ``{"format": "camkit-camera", "version": 1, "model": {type, width, height,
     parameters by name}, ...extra}`` as JSON (atomically). Pixel (0, 0) is the centre of the
@@ -43,7 +37,7 @@ def save_camera(path: str | os.PathLike, model: CameraModel, **extra: Any) -> Pa
     if not isinstance(model, CameraModel):
         raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
     doc = {"format": "camkit-camera", "version": CAMERA_FORMAT_VERSION,
-           "pixel_origin": "centre of the top-left pixel is (0, 0)", "model": _camera_dict(model), **extra}
+           "pixel_origin": "centre of the top-left pixel is (0, 0)", "model": model.to_dict(), **extra}
     return write_atomic(path, (json.dumps(doc, indent=2) + "\n").encode())
 
 

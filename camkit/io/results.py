@@ -13,7 +13,6 @@ import numpy as np
 
 from camkit._atomic import write_atomic
 from camkit.errors import ParameterError
-from camkit.io.camera_files import _camera_dict
 
 __all__ = ["RESULTS_FORMAT_VERSION", "camera_info", "orientation_note", "results_to_dict", "write_results"]
 
@@ -99,7 +98,7 @@ def results_to_dict(result: Any, image_names: Sequence[str] | None = None,
         views.append(entry)
     return {
         "format": "camkit-calibration", "version": RESULTS_FORMAT_VERSION,
-        "model": _camera_dict(result.model),
+        "model": result.model.to_dict(),
         "rms_px": _num(result.rms_px), "std_px": [_num(result.std_px[0]), _num(result.std_px[1])],
         "views": views,
         "stddev": {k: _num(v) for k, v in result.stddev.items()},

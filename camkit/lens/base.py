@@ -90,6 +90,12 @@ class CameraModel(abc.ABC):
     param_groups: ClassVar[dict[str, tuple[str, ...]]]
     #: Parameters calibration holds at their start value unless the caller frees them.
     default_fixed: ClassVar[tuple[str, ...]] = ("skew",)
+    #: Parameters a linear least-squares step can start from a pinhole fit (Zhang 2000, eq.
+    #: 13: radial terms that multiply the ideal offset by powers of r^2); none by default.
+    linear_start_terms: ClassVar[tuple[str, ...]] = ()
+    #: True where ``project`` is ``K (x/z, y/z, 1)`` exactly: a resampling map into such a
+    #: model is one matrix product per pixel.
+    is_pinhole: ClassVar[bool] = False
 
     fx: float
     fy: float
@@ -128,6 +134,49 @@ class CameraModel(abc.ABC):
                 f"({', '.join(cls.param_names)}), got {p.shape}"
             )
         return cls(**dict(zip(cls.param_names, p.tolist(), strict=True)), width=width, height=height)
+
+    @classmethod
+    def start_projection(cls) -> str:
+        """The closed-form start calibration uses for this model: ``"perspective"`` (Zhang's,
+        from homographies of the pinhole image) or ``"equidistant"`` (``r = f theta``, for
+        fisheye lenses whose corners no homography explains)."""
+        return "perspective"
+
+    @classmethod
+    def initial_guess(cls, K: Any, *, width: int, height: int) -> Self:
+        """The model a closed-form start gives: intrinsics from the 3x3 ``K``, every
+        distortion parameter at its neutral value."""
+        k = as_real_array(K, "K")
+        if k.shape != (3, 3):
+            raise ShapeError(f"K: expected shape (3, 3), got {k.shape}")
+        return cls(fx=float(k[0, 0]), fy=float(k[1, 1]), cx=float(k[0, 2]), cy=float(k[1, 2]),  # type: ignore[call-arg]
+                   skew=float(k[0, 1]), width=width, height=height)
+
+    @classmethod
+    @abc.abstractmethod
+    def example(cls) -> Self:
+        """A realistic instance: 1280x960, 4.8 um pixels behind a 4.8 mm lens (fx = 1000 px)
+        or a fisheye; what the command line, the demo and the contract tests use."""
+
+    def for_points(self, points_cam: Any) -> Self:
+        """This model, for an optimiser's trial evaluations at camera points ``(N, 3)``: a model
+        whose valid region must be searched (Brown-Conrady) establishes it only as far out as
+        these points reach, a cheaper scan. The model itself is unchanged; the returned one
+        serves these points only (a model to keep is built fresh)."""
+        return self
+
+    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+        """Fill ``out`` (H, W, 2) with this model's pixels for the rays ``M @ (u, v, 1)`` of every
+        output pixel ``(u, v)``, in one fused kernel, and return True; False where the model
+        has no such kernel (a resampling map then projects row bands through :meth:`project`).
+        """
+        return False
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": name, "width", "height", and every parameter by name}``."""
+        out: dict[str, Any] = {"type": self.name, "width": self.width, "height": self.height}
+        out.update({n: float(getattr(self, n)) for n in self.param_names})
+        return out
 
     def replace(self, **changes: Any) -> Self:
         """A copy with some fields changed (``dataclasses.replace``); the model is immutable."""

@@ -10,6 +10,11 @@ lensfun's ``poly3`` TCA model::
 where ``r`` is the distance from the optical centre normalised by half the image diagonal
 (here; 1 at the corners of an image centred on the axis) and ``r_c`` where channel ``c``
 images a point that green images at ``r``.
+
+The model gives each channel's remap map (:meth:`LateralChromaticAberration.map`); resampling
+an image with it is :func:`camkit.resample.apply_chromatic` and
+:func:`camkit.resample.correct_chromatic` (the lens room computes where light goes, the
+resampling room moves pixels).
 """
 
 from __future__ import annotations
@@ -20,10 +25,8 @@ from typing import Any
 import numpy as np
 
 from camkit._kernels import chromatic as _kc
-from camkit._validate import as_finite_float, as_image, as_positive_int, check_choice
-from camkit.errors import ParameterError, ShapeError
-from camkit.resample.kernels import DEFAULT_BICUBIC_A
-from camkit.resample.remap import remap
+from camkit._validate import as_finite_float, as_positive_int, check_choice
+from camkit.errors import ParameterError
 
 __all__ = ["LateralChromaticAberration"]
 
@@ -52,7 +55,8 @@ class LateralChromaticAberration:
     >>> tca = LateralChromaticAberration(vr=1.001, vb=0.999)
     >>> img = np.zeros((101, 101, 3))
     >>> img[50, 90] = 1.0                       # a white dot 40 px right of the centre
-    >>> out = tca.apply(img, interpolation="bilinear")
+    >>> from camkit.resample import apply_chromatic
+    >>> out = apply_chromatic(img, tca, interpolation="bilinear")
     >>> [round(float(np.argmax(out[50, :, ch]) + 0.0), 1) for ch in range(3)]
     [90.0, 90.0, 90.0]
     >>> m = tca.map("red", 101, 101, inverse=True)
@@ -113,30 +117,6 @@ class LateralChromaticAberration:
         _kc.radial_map(cx, cy, norm, v, c, b, bool(inverse), r_hi, out)
         return out
 
-    def _remap_channels(self, image: np.ndarray, inverse: bool, interpolation: str,
-                        bicubic_a: float) -> np.ndarray:
-        img = as_image(image, "image")
-        if img.ndim != 3 or img.shape[2] not in (3, 4):
-            raise ShapeError(f"image: expected an RGB(A) image (H, W, 3 or 4), got shape {img.shape}")
-        h, w = img.shape[:2]
-        out = img.copy()
-        for name, ch in _CHANNELS.items():
-            if self._coeffs(name) == (1.0, 0.0, 0.0):
-                continue
-            m = self.map(name, w, h, inverse=inverse)
-            out[:, :, ch] = remap(np.ascontiguousarray(img[:, :, ch]), m, interpolation=interpolation,
-                                  border="replicate", bicubic_a=bicubic_a)
-        return out
-
-    def apply(self, image: np.ndarray, *, interpolation: str = "bicubic",
-              bicubic_a: float = DEFAULT_BICUBIC_A) -> np.ndarray:
-        """Simulate the aberration on a sharp RGB(A) image (green and alpha are unchanged).
-
-        Returns an image of the same shape and dtype.
-        """
-        return self._remap_channels(image, True, interpolation, bicubic_a)
-
-    def correct(self, image: np.ndarray, *, interpolation: str = "bicubic",
-                bicubic_a: float = DEFAULT_BICUBIC_A) -> np.ndarray:
-        """Remove the aberration from an RGB(A) image: red and blue are resampled onto green."""
-        return self._remap_channels(image, False, interpolation, bicubic_a)
+    def channels(self) -> dict[str, int]:
+        """The channels the aberration moves, name to RGB index (green is the reference)."""
+        return {name: ch for name, ch in _CHANNELS.items() if self._coeffs(name) != (1.0, 0.0, 0.0)}

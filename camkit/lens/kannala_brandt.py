@@ -8,6 +8,7 @@ from typing import ClassVar
 import numpy as np
 
 from camkit._kernels import kannala_brandt as _kk
+from camkit._kernels import maps as _km
 from camkit.lens.base import CameraModel, register_model
 
 __all__ = ["KannalaBrandt"]
@@ -67,6 +68,21 @@ class KannalaBrandt(CameraModel):
     k3: float = 0.0
     k4: float = 0.0
     _cache: dict = field(default_factory=dict, init=False, repr=False, compare=False)
+
+    @classmethod
+    def start_projection(cls) -> str:
+        return "equidistant"
+
+    @classmethod
+    def example(cls) -> KannalaBrandt:
+        """1280x960 behind a fisheye lens, fx = 400 px."""
+        return cls(fx=400.0, fy=400.2, cx=641.3, cy=478.2, k1=0.02, k2=-0.005, k3=0.001, k4=-0.0002,
+                   width=1280, height=960)
+
+    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+        _km.pinhole_to_kannala_brandt(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
+                                      self.valid_theta, out)
+        return True
 
     def to_opencv(self) -> tuple[np.ndarray, np.ndarray]:
         """``(K, dist)`` for OpenCV; see :func:`camkit.lens.to_opencv`."""

@@ -7,6 +7,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from camkit._kernels import maps as _km
 from camkit._kernels import transform as _kt
 from camkit._validate import as_finite_float, as_positive_float, as_positive_int, as_real_array
 from camkit.errors import ParameterError
@@ -56,6 +57,7 @@ class Pinhole(CameraModel):
     param_names: ClassVar[tuple[str, ...]] = ("fx", "fy", "cx", "cy", "skew")
     #: Held by calibration unless freed.
     default_fixed: ClassVar[tuple[str, ...]] = ("skew",)
+    is_pinhole: ClassVar[bool] = True
     param_groups: ClassVar[dict[str, tuple[str, ...]]] = {
         "focal": ("fx", "fy"),
         "principal_point": ("cx", "cy"),
@@ -70,6 +72,15 @@ class Pinhole(CameraModel):
     skew: float = 0.0
     width: int
     height: int
+
+    @classmethod
+    def example(cls) -> Pinhole:
+        """1280x960, fx = 1000 px (4.8 um pixels behind a 4.8 mm lens)."""
+        return cls(fx=1000.0, fy=1000.5, cx=641.3, cy=478.2, width=1280, height=960)
+
+    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+        _km.pinhole_to_pinhole(np.ascontiguousarray(M, dtype=np.float64), self._intr(), out)
+        return True
 
     @classmethod
     def from_physical(cls, *, focal_length: float, pixel_pitch: Any, width: int, height: int,

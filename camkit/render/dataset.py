@@ -16,7 +16,7 @@ from camkit.errors import EstimationError, ParameterError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
 from camkit.io.images import write_png
-from camkit.lens.base import CameraModel
+from camkit.lens.base import MODELS, CameraModel, get_model
 from camkit.render.effects import Effects, render_view
 from camkit.target import Checkerboard
 
@@ -73,10 +73,8 @@ def plan_views(camera: CameraModel, board: Checkerboard, n: int, rng: np.random.
 
 
 def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
-    """``{"type", "width", "height", and every parameter by name}``."""
-    out: dict[str, Any] = {"type": camera.name, "width": camera.width, "height": camera.height}
-    out.update({name: float(getattr(camera, name)) for name in camera.param_names})
-    return out
+    """``{"type", "width", "height", and every parameter by name}`` (:meth:`CameraModel.to_dict`)."""
+    return camera.to_dict()
 
 
 def _file_scale(effects: Effects | None, bit_depth: int) -> tuple[float, int | None]:
@@ -149,15 +147,8 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Che
 
 
 def default_camera(model: str = "brown-conrady") -> CameraModel:
-    """A realistic built-in camera for each registry model: 1280x960, 4.8 um pixels behind
-    a 4.8 mm lens (fx = 1000 px), with a moderate barrel lens or a fisheye."""
-    from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
-
-    common = {"width": 1280, "height": 960, "cx": 641.3, "cy": 478.2}
-    if model == "pinhole":
-        return Pinhole(fx=1000.0, fy=1000.5, **common)
-    if model == "brown-conrady":
-        return BrownConrady(fx=1000.0, fy=1000.5, k1=-0.25, k2=0.08, k3=-0.01, p1=4e-4, p2=-3e-4, **common)
-    if model == "kannala-brandt":
-        return KannalaBrandt(fx=400.0, fy=400.2, k1=0.02, k2=-0.005, k3=0.001, k4=-0.0002, **common)
-    raise ParameterError(f"model: expected 'pinhole', 'brown-conrady' or 'kannala-brandt', got {model!r}")
+    """The registry model's realistic example (:meth:`CameraModel.example`): 1280x960, 4.8 um
+    pixels behind a 4.8 mm lens (fx = 1000 px), with a moderate barrel lens or a fisheye."""
+    if model not in MODELS:
+        raise ParameterError(f"model: expected one of {', '.join(map(repr, sorted(MODELS)))}, got {model!r}")
+    return get_model(model).example()

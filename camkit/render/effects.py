@@ -16,6 +16,7 @@ from camkit.lens.base import CameraModel
 from camkit.lens.chromatic import LateralChromaticAberration
 from camkit.optics.thin_lens import circle_of_confusion
 from camkit.render.target import RenderTruth, _render_board, camera_rays, render_target
+from camkit.resample.chromatic import apply_chromatic
 from camkit.sensor.cfa import PATTERNS, mosaic
 from camkit.sensor.demosaic import DEMOSAIC_METHODS, demosaic
 from camkit.sensor.noise import EMVA1288Sensor
@@ -170,7 +171,7 @@ def render_view(camera: CameraModel, cam_from_target: Pose, board: Target,
     if fx.rgb:
         img3 = np.repeat(img3, 3, axis=2)
     if fx.chromatic is not None:
-        img3 = fx.chromatic.apply(img3)
+        img3 = apply_chromatic(img3, fx.chromatic)
     image = img3 if fx.rgb else img3[:, :, 0]
     if fx.exposure is None:
         return image, truth

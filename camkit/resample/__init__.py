@@ -1,5 +1,6 @@
 """Resampling: interpolation kernels, remap, warps, resize and lens maps."""
 
+from camkit.resample.chromatic import apply_chromatic, correct_chromatic
 from camkit.resample.kernels import DEFAULT_BICUBIC_A, INTERPOLATIONS, kernel, kernel_support
 from camkit.resample.maps import optimal_pinhole, reproject_map, undistort_map
 from camkit.resample.remap import BORDERS, remap, undistort_image
@@ -11,6 +12,8 @@ __all__ = [
     "DEFAULT_BICUBIC_A",
     "INTERPOLATIONS",
     "RESIZE_INTERPOLATIONS",
+    "apply_chromatic",
+    "correct_chromatic",
     "kernel",
     "kernel_support",
     "optimal_pinhole",

@@ -13,12 +13,9 @@ from typing import Any
 
 import numpy as np
 
-from camkit._kernels import maps as _km
 from camkit._validate import as_finite_float, as_positive_int, as_rotation_matrix
 from camkit.errors import ParameterError
 from camkit.lens.base import CameraModel
-from camkit.lens.brown_conrady import BrownConrady
-from camkit.lens.kannala_brandt import KannalaBrandt
 from camkit.lens.pinhole import Pinhole
 
 __all__ = ["optimal_pinhole", "reproject_map", "undistort_map"]
@@ -65,17 +62,9 @@ def reproject_map(src_model: CameraModel, dst_model: CameraModel, rotation: Any 
     dt = _check_dtype(dtype)
     R = np.eye(3) if rotation is None else as_rotation_matrix(rotation, "rotation")
     out = np.empty((dst.height, dst.width, 2), dtype=dt)
-    if type(dst) is Pinhole:
+    if dst.is_pinhole:
         M = np.ascontiguousarray(R @ np.linalg.inv(dst.K))
-        intr = np.array([src.fx, src.fy, src.cx, src.cy, src.skew])
-        if type(src) is Pinhole:
-            _km.pinhole_to_pinhole(M, intr, out)
-            return out
-        if type(src) is BrownConrady:
-            _km.pinhole_to_brown_conrady(M, intr, src._coeffs(), src._r2_valid(), out)
-            return out
-        if type(src) is KannalaBrandt:
-            _km.pinhole_to_kannala_brandt(M, intr, src._coeffs(), src.valid_theta, out)
+        if src.map_from_rays(M, out):
             return out
     # Generic path: any pair of models, a band of rows at a time (bounded memory).
     rows = max(1, _CHUNK_PIXELS // dst.width)
@@ -85,8 +74,8 @@ def reproject_map(src_model: CameraModel, dst_model: CameraModel, rotation: Any 
         grid = np.empty((len(v), dst.width, 2))
         grid[..., 0] = u[None, :]
         grid[..., 1] = v[:, None]
-        rays = dst._unproject_rows(grid.reshape(-1, 2))
-        px = src._project_rows(np.ascontiguousarray(rays @ R.T))
+        rays = dst.unproject(grid.reshape(-1, 2))
+        px = src.project(rays @ R.T)
         out[r0:r0 + len(v)] = px.reshape(len(v), dst.width, 2)
     return out
 

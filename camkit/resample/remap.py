@@ -6,6 +6,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._alloc import new_image
 from camkit._kernels import remap as _kr
 from camkit._validate import as_finite_float, as_image, as_real_array, check_choice
 from camkit.errors import ParameterError, ShapeError
@@ -34,18 +35,6 @@ def _int_range(dtype: np.dtype) -> tuple[bool, float, float]:
         info = np.iinfo(dtype)
         return True, float(info.min), float(info.max)
     return False, 0.0, 0.0
-
-
-def new_image(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
-    """An output array, its pages touched here, both cores taking the first-touch page faults
-    of a fresh allocation (one byte per page: the kernels write every pixel). Measured on the
-    2-core machine, 12 MP uint8 RGB, one process, 15-31 alternated calls each: against
-    ``fill(0)`` in NumPy (one core writing all 36 MB), the bilinear map remap 54.4 -> 52.0 ms,
-    the perspective warp 66.0 -> 63.8 ms, the bicubic remap 123.6 -> 119.9 ms. (An earlier
-    kernel taking the faults itself measured ~40 ms slower.)"""
-    out = np.empty(shape, dtype=dtype)
-    _kr.touch_pages(out.reshape(-1).view(np.uint8))
-    return out
 
 
 def pick_kernel(family: str, method: int, img3: np.ndarray):

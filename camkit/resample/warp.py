@@ -6,10 +6,11 @@ from typing import Any
 
 import numpy as np
 
+from camkit._alloc import new_image
 from camkit._validate import as_matrix, as_positive_int
 from camkit.errors import ParameterError
 from camkit.resample.kernels import DEFAULT_BICUBIC_A
-from camkit.resample.remap import accumulator_zero, new_image, pick_kernel, sampling_setup
+from camkit.resample.remap import accumulator_zero, pick_kernel, sampling_setup
 
 __all__ = ["warp_affine", "warp_perspective"]
 

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from camkit._alloc import new_image
 from camkit._kernels import demosaic as _kd
 from camkit._kernels import menon as _km
 from camkit._validate import as_image, check_choice
 from camkit.errors import ShapeError
-from camkit.resample.remap import new_image
 from camkit.sensor.cfa import pattern_code
 
 __all__ = ["DEMOSAIC_METHODS", "demosaic"]

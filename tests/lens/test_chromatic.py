@@ -7,6 +7,7 @@ import pytest
 
 from camkit.errors import ParameterError, ShapeError
 from camkit.lens import LateralChromaticAberration
+from camkit.resample import apply_chromatic, correct_chromatic
 
 TCA = LateralChromaticAberration(vr=1.0008, cr=2e-4, br=3e-4, vb=0.9993, cb=-1e-4, bb=-2e-4, cx=330.0, cy=250.0)
 
@@ -39,10 +40,10 @@ def test_apply_then_correct_restores_a_smooth_image():
     yy, xx = np.mgrid[0:H, 0:W] / 40.0
     img = np.stack([np.sin(xx) * np.cos(yy), np.cos(xx + yy), np.sin(xx - yy)], axis=-1) * 0.4 + 0.5
     tca = LateralChromaticAberration(vr=1.004, vb=0.996)
-    sim = tca.apply(img)
+    sim = apply_chromatic(img, tca)
     assert np.abs(sim[..., 0] - img[..., 0]).max() > 1e-3  # the aberration is visible
     assert np.array_equal(sim[..., 1], img[..., 1])  # green is the reference
-    back = tca.correct(sim)
+    back = correct_chromatic(sim, tca)
     inner = (slice(8, -8), slice(8, -8))
     # Two bicubic resamplings of a smooth image: 1e-4 of the value range.
     assert np.abs(back[inner] - img[inner]).max() < 1e-4
@@ -50,7 +51,7 @@ def test_apply_then_correct_restores_a_smooth_image():
 
 def test_uint8_and_rgba():
     img = np.random.default_rng(0).integers(0, 256, (50, 60, 4), dtype=np.uint8)
-    out = TCA.apply(img)
+    out = apply_chromatic(img, TCA)
     assert out.dtype == np.uint8 and out.shape == img.shape
     assert np.array_equal(out[..., 3], img[..., 3])
 
@@ -65,4 +66,9 @@ def test_bad_input():
     with pytest.raises(ParameterError, match="channel: expected one of"):
         TCA.map("green", 10, 10)
     with pytest.raises(ShapeError, match="image: expected an RGB"):
-        TCA.apply(np.zeros((10, 10)))
+        apply_chromatic(np.zeros((10, 10)), TCA)
+
+
+def test_the_aberration_argument_is_checked():
+    with pytest.raises(ParameterError, match="aberration: expected a LateralChromaticAberration"):
+        apply_chromatic(np.zeros((10, 10, 3)), (1.001, 0.999))

@@ -167,3 +167,51 @@ def test_bad_arrays(model):
         model.unproject(np.zeros((4, 3)))
     with pytest.raises(CamkitError, match="params: expected shape"):
         type(model).from_params(np.zeros(3), width=10, height=10)
+
+
+def test_model_knowledge_lives_on_the_model(model):
+    """example(), initial_guess(), to_dict(), start_projection(), linear_start_terms and
+    default_fixed: what calibration, the CLI and the demo ask a model, answered by the model."""
+    cls = type(model)
+    ex = cls.example()
+    assert type(ex) is cls and ex.width > 0 and ex.height > 0
+    d = model.to_dict()
+    assert d["type"] == model.name and d["width"] == model.width
+    assert cls.from_params([d[n] for n in model.param_names], width=d["width"], height=d["height"]) == model
+    guess = cls.initial_guess(model.K, width=model.width, height=model.height)
+    np.testing.assert_array_equal(guess.K, model.K)
+    dist = [n for n in model.param_groups["distortion"]]
+    assert all(getattr(guess, n) == 0.0 for n in dist)  # neutral distortion for every model here
+    assert cls.start_projection() in ("perspective", "equidistant")
+    assert set(cls.linear_start_terms) <= set(dist) and set(cls.default_fixed) <= set(model.param_names)
+
+
+def test_for_points_projects_the_same_and_leaves_the_model_alone(model):
+    """The solver's trial model (valid region searched only as far as its points) projects
+    those points exactly as the model does, and the model keeps its own region."""
+    px = _pixel_grid(model, 15)
+    rays = model.unproject(px)
+    pts = rays[np.isfinite(rays).all(axis=1)] * 2.0
+    before = model.project(pts)
+    trial = model.for_points(pts)
+    np.testing.assert_array_equal(trial.project(pts), before)
+    np.testing.assert_array_equal(model.project(pts), before)
+    assert trial == model
+
+
+def test_fused_map_agrees_with_projecting_the_rays(model):
+    """map_from_rays (the fast path of resampling maps) against project() of the same rays."""
+    from camkit.resample import reproject_map
+
+    dst = Pinhole(fx=0.8 * model.fx, fy=0.8 * model.fy, cx=model.cx, cy=model.cy, width=model.width // 4,
+                  height=model.height // 4)
+    M = np.linalg.inv(dst.K)
+    out = np.empty((dst.height, dst.width, 2))
+    assert model.map_from_rays(M, out)  # every model here has a fused kernel
+    v, u = np.mgrid[0:dst.height, 0:dst.width]
+    rays = np.stack([u, v, np.ones_like(u)], axis=-1) @ M.T
+    ref = model.project(rays.astype(np.float64))
+    ok = np.isfinite(ref).all(axis=-1)
+    np.testing.assert_allclose(out[ok], ref[ok], atol=1e-6)  # float64 throughout: rounding only
+    assert np.array_equal(np.isfinite(out).all(axis=-1), ok)
+    np.testing.assert_allclose(reproject_map(model, dst, dtype=np.float64)[ok], ref[ok], atol=1e-6)

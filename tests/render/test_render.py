@@ -184,5 +184,5 @@ def test_texture_and_camera_bad_input():
         render_texture(PIN, Pose.identity(), [[0, 1]], (0.2, 0.2))
     with pytest.raises(ParameterError, match="cam_from_target: expected a Pose"):
         render_texture(PIN, np.eye(4), tex, (0.2, 0.2))
-    with pytest.raises(ParameterError, match="model: expected 'pinhole'"):
+    with pytest.raises(ParameterError, match="model: expected one of 'brown-conrady', 'kannala-brandt', 'pinhole'"):
         default_camera("fisheye")
