@@ -26,10 +26,7 @@ def warm_render_tail() -> None:
 
 
 def warm_pipeline() -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot  # a first import builds matplotlib's font cache
+    import matplotlib.font_manager  # noqa: F401 - a first import builds matplotlib's font cache
 
     from camkit.io import read_image, write_png
     from camkit.lens import BrownConrady

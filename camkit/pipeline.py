@@ -9,10 +9,13 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from camkit.calib.calibrate import CalibrationResult, calibrate_images
-from camkit.errors import ImageFileError, ParameterError
+from camkit.calib.calibrate import CalibrationResult, calibrate_detections
+from camkit.errors import ImageFileError, ParameterError, ShapeError
 from camkit.lens.base import CameraModel
-from camkit.target import Checkerboard
+from camkit.target import Target
+
+#: Width of the thumbnails kept for the report (pixels).
+THUMBNAIL_WIDTH = 240
 
 __all__ = ["CalibrationJob", "InputImages", "calibrate_files", "collect_images", "prepare_outputs"]
 
@@ -119,7 +122,7 @@ class CalibrationJob:
     image_info: list = field(default_factory=list)
 
 
-def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, model: str = "brown-conrady",
+def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model: str = "brown-conrady",
                     fix: tuple[str, ...] | None = None, free: tuple[str, ...] | None = None,
                     camera_file: str | os.PathLike | None = None, results_file: str | os.PathLike | None = None,
                     report_file: str | os.PathLike | None = None, truth: CameraModel | None = None,
@@ -131,11 +134,19 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
     total)`` is called during detection (stage ``"detect"``), then with 0 and 1 of 1 around the
     solve (``"calibrate"``) and the report (``"report"``). No output may be one of the inputs.
     The images' EXIF (camera, lens, focal length, orientation) goes into the results file and
-    the report."""
+    the report.
+
+    Each image is decoded once: the target is detected in it and, when a report is asked for,
+    a thumbnail (:data:`THUMBNAIL_WIDTH` px wide) is kept for it; only one full image is in memory at
+    a time."""
     from camkit.io.camera_files import save_camera
-    from camkit.io.images import read_image_info
+    from camkit.io.images import read_image, read_image_info
     from camkit.io.results import write_results
     from camkit.report import write_report
+    from camkit.resample import resize
+
+    if not isinstance(board, Target):
+        raise ParameterError(f"board: expected a camkit target (e.g. a Checkerboard), got {type(board).__name__}")
 
     files = [Path(p) for p in paths]
     outs = prepare_outputs({"camera_file": camera_file, "results_file": results_file, "report_file": report_file},
@@ -148,13 +159,27 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
         except ImageFileError:
             info.append(None)  # read_image below names the problem
 
-    def det_progress(done: int, total: int) -> None:
+    detections, thumbs, size = [], [], None
+    for k, f in enumerate(files):
+        img = read_image(f)
+        if size is None:
+            size = img.shape[:2]
+        elif img.shape[:2] != size:
+            raise ShapeError(f"images[{k}]: expected the size of the first image, {size[1]}x{size[0]}, got "
+                             f"{img.shape[1]}x{img.shape[0]} ({f.name}); one calibration is for one camera mode")
+        detections.append(board.detect(img))
+        if "report_file" in outs:
+            w = min(THUMBNAIL_WIDTH, img.shape[1])
+            thumbs.append(resize(img, width=w, height=max(round(img.shape[0] * w / img.shape[1]), 1),
+                                 interpolation="area") if w < img.shape[1] else img)
+        del img
         if progress is not None:
-            progress("detect", done, total)
-            if done == total:
-                progress("calibrate", 0, 1)  # the solve starts when detection ends
-
-    result = calibrate_images(files, board, model=model, fix=fix, free=free, progress=det_progress)
+            progress("detect", k + 1, len(files))
+    if progress is not None:
+        progress("calibrate", 0, 1)  # the solve starts when detection ends
+    if size is None:
+        raise ParameterError("paths: no images given")
+    result = calibrate_detections(detections, board, width=size[1], height=size[0], model=model, fix=fix, free=free)
     if progress is not None:
         progress("calibrate", 1, 1)
     cam_path = res_path = rep_path = None
@@ -166,7 +191,7 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Checkerboard, *, 
     if "report_file" in outs:
         if progress is not None:
             progress("report", 0, 1)
-        rep_path = write_report(outs["report_file"], result, images=files, image_names=names, truth=truth,
+        rep_path = write_report(outs["report_file"], result, images=thumbs, image_names=names, truth=truth,
                                 title=title, image_info=info)
         if progress is not None:
             progress("report", 1, 1)

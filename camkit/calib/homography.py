@@ -8,6 +8,7 @@ import numpy as np
 
 from camkit._kernels import calib as _kc
 from camkit._validate import as_points
+from camkit.calib.refine import Linearization, LMOptions, solve
 from camkit.errors import EstimationError, ShapeError
 
 __all__ = ["find_homography"]
@@ -18,8 +19,8 @@ def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> n
 
     Normalised DLT (R. Hartley, "In defense of the eight-point algorithm", IEEE TPAMI 19(6),
     1997; Hartley & Zisserman, *Multiple View Geometry*, alg. 4.2), then, with ``refine``,
-    Gauss-Newton on the reprojection error in the image (the maximum-likelihood estimate for
-    Gaussian pixel noise), stopped when the step no longer reduces it.
+    Levenberg-Marquardt (:func:`camkit.calib.refine.solve`) on the reprojection error in the
+    image (the maximum-likelihood estimate for Gaussian pixel noise).
 
     Parameters
     ----------
@@ -83,31 +84,41 @@ def _project(h: np.ndarray, X: np.ndarray) -> np.ndarray:
                      (H[1, 0] * X[:, 0] + H[1, 1] * X[:, 1] + H[1, 2]) / w], axis=-1)
 
 
+class _HomographyProblem:
+    """Reprojection residuals ``H(x) - u`` over the eight entries of H (``H[2, 2] = 1``): a
+    global block alone, for :func:`camkit.calib.refine.solve`."""
+
+    global_names = ("h00", "h01", "h02", "h10", "h11", "h12", "h20", "h21")
+    local_name = ""
+    local_size = 0
+    n_groups = 1
+
+    def __init__(self, X: np.ndarray, u: np.ndarray) -> None:
+        self.X, self.u = X, u
+        self.group = np.zeros(len(X), dtype=np.int64)
+        self.no_local = np.zeros((len(X), 2, 0))
+
+    def linearize(self, h: np.ndarray) -> Linearization:
+        X = self.X
+        Hm = np.append(h, 1.0).reshape(3, 3)
+        w = Hm[2, 0] * X[:, 0] + Hm[2, 1] * X[:, 1] + 1.0
+        p = _project(h, X)
+        J = np.zeros((len(X), 2, 8))
+        J[:, 0, 0:2] = X / w[:, None]
+        J[:, 0, 2] = 1 / w
+        J[:, 0, 6:8] = -p[:, :1] * X / w[:, None]
+        J[:, 1, 3:5] = X / w[:, None]
+        J[:, 1, 5] = 1 / w
+        J[:, 1, 6:8] = -p[:, 1:2] * X / w[:, None]
+        return Linearization(p - self.u, J, self.no_local, self.group)
+
+    def retract(self, h: np.ndarray, d_global: np.ndarray, d_local: np.ndarray) -> np.ndarray:
+        return h + d_global
+
+
 def _refine(H: np.ndarray, X: np.ndarray, u: np.ndarray) -> np.ndarray:
     if abs(H[2, 2]) < 1e-12:
         return H
     h = (H / H[2, 2]).ravel()[:8]
-    r = (_project(h, X) - u).ravel()
-    cost = r @ r
-    for _ in range(50):
-        Hm = np.append(h, 1.0).reshape(3, 3)
-        w = Hm[2, 0] * X[:, 0] + Hm[2, 1] * X[:, 1] + 1.0
-        p = _project(h, X)
-        J = np.zeros((2 * len(X), 8))
-        J[0::2, 0:2] = X / w[:, None]
-        J[0::2, 2] = 1 / w
-        J[0::2, 6:8] = -p[:, :1] * X / w[:, None]
-        J[1::2, 3:5] = X / w[:, None]
-        J[1::2, 5] = 1 / w
-        J[1::2, 6:8] = -p[:, 1:2] * X / w[:, None]
-        step = np.linalg.lstsq(J, -r, rcond=None)[0]
-        h_new = h + step
-        r_new = (_project(h_new, X) - u).ravel()
-        c_new = r_new @ r_new
-        if not c_new < cost:
-            break
-        converged = cost - c_new <= 1e-12 * max(cost, 1e-300)
-        h, r, cost = h_new, r_new, c_new
-        if converged:
-            break
-    return np.append(h, 1.0).reshape(3, 3)
+    report = solve(_HomographyProblem(X, u), h, LMOptions(max_iterations=50, tolerance=1e-12, covariance=False))
+    return np.append(report.state, 1.0).reshape(3, 3)

@@ -9,6 +9,8 @@ import numpy as np
 
 from camkit._validate import as_points
 from camkit.calib.homography import find_homography
+from camkit.calib.refine import Linearization, LMOptions, solve
+from camkit.calib.views import pose_jacobian
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
@@ -39,7 +41,8 @@ def solve_pnp(object_points: Any, pixels: Any, model: CameraModel, *, max_iterat
     The pixels are unprojected to rays (so any lens model works), a linear start is made on
     the normalised coordinates (a plane homography for >= 4 coplanar points, Zhang's
     decomposition; the DLT of ``[R | t]`` for >= 6 points in general position), and the pose is
-    refined by Levenberg-Marquardt on the reprojection error in pixels.
+    refined by Levenberg-Marquardt (:func:`camkit.calib.refine.solve`) on the reprojection error
+    in pixels.
 
     Parameters
     ----------
@@ -99,48 +102,36 @@ def solve_pnp(object_points: Any, pixels: Any, model: CameraModel, *, max_iterat
     return _refine(pose, X, u, model, max_iterations)
 
 
-def _refine(pose: Pose, X: np.ndarray, u: np.ndarray, model: CameraModel, max_iterations: int) -> PnPResult:
-    def resid(p: Pose):
-        Xc = p.apply(X)
-        uv, dp, _ = model.project_with_jacobian(Xc)
-        return uv - u, dp, Xc
+class _PoseProblem:
+    """Reprojection residuals of one pose, a global block alone (``R <- exp([w]x) R``,
+    ``t <- t + dt``), for :func:`camkit.calib.refine.solve`."""
 
-    r, dp, Xc = resid(pose)
-    cost = float(np.nansum(r * r)) if np.isfinite(r).all() else np.inf
-    if not np.isfinite(cost):
+    global_names = ("wx", "wy", "wz", "tx", "ty", "tz")
+    local_name = ""
+    local_size = 0
+    n_groups = 1
+
+    def __init__(self, X: np.ndarray, u: np.ndarray, model: CameraModel) -> None:
+        self.X, self.u, self.model = X, u, model
+        self.group = np.zeros(len(X), dtype=np.int64)
+        self.no_local = np.zeros((len(X), 2, 0))
+
+    def linearize(self, pose: Pose) -> Linearization:
+        RX = self.X @ pose.R.T
+        uv, dp, _ = self.model.project_with_jacobian(RX + pose.t)
+        return Linearization(uv - self.u, pose_jacobian(dp, RX), self.no_local, self.group)
+
+    def retract(self, pose: Pose, d_global: np.ndarray, d_local: np.ndarray) -> Pose:
+        return Pose(matrix_from_rvec(d_global[:3]) @ pose.R, pose.t + d_global[3:])
+
+
+def _refine(pose: Pose, X: np.ndarray, u: np.ndarray, model: CameraModel, max_iterations: int) -> PnPResult:
+    problem = _PoseProblem(X, u, model)
+    if not np.isfinite(problem.linearize(pose).residuals).all():
         raise EstimationError("start: the linear pose puts points behind the camera or outside the lens's valid "
                               "region; check the correspondences")
-    mu, converged, message, it = 1e-3, False, "", 0
-    for it in range(1, max_iterations + 1):  # noqa: B007 - the count is reported after the loop
-        RX = Xc - pose.t
-        skew = np.zeros((len(X), 3, 3))
-        skew[:, 0, 1], skew[:, 0, 2] = RX[:, 2], -RX[:, 1]
-        skew[:, 1, 0], skew[:, 1, 2] = -RX[:, 2], RX[:, 0]
-        skew[:, 2, 0], skew[:, 2, 1] = RX[:, 1], -RX[:, 0]  # -[RX]x
-        J = np.concatenate([dp @ skew, dp], axis=2).reshape(-1, 6)
-        A = J.T @ J
-        g = J.T @ r.ravel()
-        d = np.diag(A).copy()
-        improved = False
-        for _ in range(30):
-            step = np.linalg.solve(A + mu * np.diag(d), -g)
-            new = Pose(matrix_from_rvec(step[:3]) @ pose.R, pose.t + step[3:])
-            r_new, dp_new, Xc_new = resid(new)
-            c_new = float((r_new * r_new).sum()) if np.isfinite(r_new).all() else np.inf
-            if c_new < cost:
-                rel = (cost - c_new) / max(cost, 1e-300)
-                pose, r, dp, Xc, cost = new, r_new, dp_new, Xc_new, c_new
-                mu = max(mu / 3, 1e-12)
-                improved = True
-                if rel < 1e-14 or np.abs(step).max() < 1e-14:
-                    converged, message = True, "converged: the cost no longer decreases"
-                break
-            mu *= 4
-        if not improved:
-            converged, message = True, "converged: no step reduces the cost further"
-            break
-        if converged:
-            break
-    else:
-        message = f"stopped after {max_iterations} iterations without converging"
-    return PnPResult(pose, float(np.sqrt((r * r).sum() / len(X))), converged, it, message)
+    report = solve(problem, pose, LMOptions(max_iterations=max_iterations, tolerance=1e-14, damping=1e-3,
+                                            covariance=False))
+    r = report.residuals
+    return PnPResult(report.state, float(np.sqrt((r * r).sum() / len(X))), report.converged, report.iterations,
+                     report.message)

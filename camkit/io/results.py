@@ -9,14 +9,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from camkit._atomic import write_atomic
+from camkit.calib.result import RESULTS_FORMAT_VERSION, CalibrationResult
 from camkit.errors import ParameterError
 
 __all__ = ["RESULTS_FORMAT_VERSION", "camera_info", "orientation_note", "results_to_dict", "write_results"]
 
-RESULTS_FORMAT_VERSION = 1
 
 
 def _num(x: float) -> float | None:
@@ -56,57 +54,18 @@ def orientation_note(image_info: Sequence[Any] | None) -> str | None:
 
 def results_to_dict(result: Any, image_names: Sequence[str] | None = None,
                     image_info: Sequence[Any] | None = None) -> dict[str, Any]:
-    """``{"model": {type, width, height, parameters by name}, "rms_px", "std_px": [x, y],
-    "views": [{"image", "found", "n_corners", "rms_px"}], "stddev": {parameter: sigma}}``,
-    plus the format version, convergence, rejected corners and views, and per view the pose
-    (``cam_from_target`` as a rotation vector and translation, metres) and the camera's
-    yaw/pitch/roll relative to the board (degrees).
-
-    ``views`` has one entry per input view (or image): ``found`` is false and ``rms_px`` null
-    for a view that was left out. With ``image_info`` (:class:`camkit.io.ImageInfo` per
-    image), ``camera_info`` holds the EXIF camera, lens and focal lengths, and each view its
-    EXIF ``orientation`` when not 1."""
-    from camkit.calib.calibrate import CalibrationResult
-
+    """:meth:`CalibrationResult.to_dict`, plus what the image files say: with ``image_info``
+    (:class:`camkit.io.ImageInfo` per image), ``camera_info`` holds the EXIF camera, lens and
+    focal lengths, and each view its EXIF ``orientation`` when not 1."""
     if not isinstance(result, CalibrationResult):
         raise ParameterError(f"result: expected a CalibrationResult, got {type(result).__name__}")
-    dets = result.detections
-    n_inputs = len(dets) if dets is not None else max((*result.view_indices, *(i for i, _ in
-                                                                               result.rejected_views)), default=-1) + 1
-    if image_names is not None and len(image_names) != n_inputs:
-        raise ParameterError(f"image_names: expected {n_inputs} names, one per input view, got {len(image_names)}")
-    names = list(image_names) if image_names is not None else [f"view {i}" for i in range(n_inputs)]
-    pos = {v: k for k, v in enumerate(result.view_indices)}
-    ypr = result.view_ypr_deg()
-    reasons = dict(result.rejected_views)
-    views = []
-    for i in range(n_inputs):
-        entry: dict[str, Any] = {"image": names[i]}
-        if i in pos:
-            k = pos[i]
-            seen = ~(result.residuals[k] != result.residuals[k]).any(axis=1)  # corners used (not NaN)
-            pose = result.poses[k]
-            entry.update(found=True, n_corners=int(seen.sum()), rms_px=_num(float(result.view_rms_px[k])),
-                         rvec=[float(v) for v in pose.rvec], t_m=[float(v) for v in pose.t],
-                         camera_ypr_deg=[float(v) for v in ypr[k]])
-        else:
-            n = dets[i].n_found if dets is not None else int(np.isfinite(result.image_points[i]).all(axis=1).sum())
-            entry.update(found=False, n_corners=int(n), rms_px=None, reason=reasons.get(i, ""))
+    doc = result.to_dict(image_names)
+    for i, entry in enumerate(doc["views"]):
         if image_info is not None and i < len(image_info) and image_info[i] is not None \
                 and image_info[i].orientation != 1:
             entry["exif_orientation"] = int(image_info[i].orientation)
-        views.append(entry)
-    return {
-        "format": "camkit-calibration", "version": RESULTS_FORMAT_VERSION,
-        "model": result.model.to_dict(),
-        "rms_px": _num(result.rms_px), "std_px": [_num(result.std_px[0]), _num(result.std_px[1])],
-        "views": views,
-        "stddev": {k: _num(v) for k, v in result.stddev.items()},
-        "converged": bool(result.converged), "iterations": int(result.iterations), "message": result.message,
-        "rejected_corners": [{"view": int(v), "corner": int(c), "reason": r} for v, c, r in result.rejected],
-        "rms_definition": "sqrt(mean over corners of dx^2 + dy^2), as OpenCV's calibrateCamera",
-        "camera_info": camera_info(image_info),
-    }
+    doc["camera_info"] = camera_info(image_info)
+    return doc
 
 
 def write_results(path: str | os.PathLike, result: Any, image_names: Sequence[str] | None = None,

@@ -136,6 +136,31 @@ class CameraModel(abc.ABC):
         return cls(**dict(zip(cls.param_names, p.tolist(), strict=True)), width=width, height=height)
 
     @classmethod
+    def held_parameters(cls, fix: Any = (), free: Any = ()) -> tuple[str, ...]:
+        """The parameters calibration holds: :attr:`default_fixed`, plus ``fix``, less ``free``.
+
+        ``fix`` and ``free`` take parameter names or group names of the model (``"k3"``,
+        ``"tangential"``); a name the model does not have is an error, whatever the model (a
+        pinhole has no ``k6``). Returns the held names in the model's parameter order.
+        """
+        sets = []
+        for arg, label in ((fix, "fix"), (free, "free")):
+            if arg is None:
+                arg = ()
+            if isinstance(arg, str) or not all(isinstance(f, str) for f in arg):
+                raise ParameterError(f"{label}: expected a tuple of parameter or group names, got {arg!r}")
+            unknown = [f for f in arg if f not in cls.param_names and f not in cls.param_groups]
+            if unknown:
+                raise ParameterError(f"{label}: {unknown} are not parameters of the {cls.name} model; expected "
+                                     f"names from {cls.param_names} or groups {tuple(cls.param_groups)}")
+            sets.append({cls.param_names[i] for i in cls.param_indices(tuple(arg))} if arg else set())
+        both = sets[0] & sets[1]
+        if both:
+            raise ParameterError(f"fix, free: {sorted(both)} named in both")
+        held = (set(cls.default_fixed) | sets[0]) - sets[1]
+        return tuple(n for n in cls.param_names if n in held)
+
+    @classmethod
     def start_projection(cls) -> str:
         """The closed-form start calibration uses for this model: ``"perspective"`` (Zhang's,
         from homographies of the pinhole image) or ``"equidistant"`` (``r = f theta``, for

@@ -1,5 +1,6 @@
 """Reports a person can read: the calibration report as one self-contained HTML file."""
 
-from camkit.report.html import projection_uncertainty, write_report
+from camkit.calib.uncertainty import projection_uncertainty
+from camkit.report.html import write_report
 
 __all__ = ["projection_uncertainty", "write_report"]

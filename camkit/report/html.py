@@ -15,51 +15,24 @@ import numpy as np
 
 from camkit import __version__
 from camkit._atomic import write_atomic
-from camkit._validate import as_matrix, as_points, as_positive_float
+from camkit.calib.uncertainty import projection_uncertainty
 from camkit.errors import ParameterError
 from camkit.lens.base import CameraModel
 
-__all__ = ["projection_uncertainty", "write_report"]
+__all__ = ["write_report"]
 
 
-def projection_uncertainty(model: CameraModel, covariance: np.ndarray, free_params: Sequence[str], pixels: Any,
-                           depth_m: float) -> np.ndarray:
-    """One-sigma uncertainty (pixels, along the worst direction) of where a point is imaged,
-    from the covariance of the fitted parameters.
+def _figure(figsize: tuple[float, float]) -> Any:
+    """A matplotlib Figure of its own (the object-oriented API: no pyplot state, no backend
+    chosen for the caller's process)."""
+    from matplotlib.figure import Figure
 
-    The point is the one seen at each pixel at ``depth_m`` in front of the camera; its pixel
-    moves with the parameters as ``J = d pixel / d params`` (the lens model's analytic
-    Jacobian), so its covariance is ``J C J^T`` and the returned value the square root of that
-    2x2 matrix's larger eigenvalue. This is the uncertainty of the intrinsics alone, with the
-    point fixed in the camera frame (the covariance is the intrinsics' marginal, poses
-    eliminated), in the spirit of mrcal's projection uncertainty (D. Kogan, mrcal
-    documentation, "Projection uncertainty").
-    """
-    if not isinstance(model, CameraModel):
-        raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
-    names = tuple(free_params)
-    unknown = [n for n in names if n not in model.param_names]
-    if unknown:
-        raise ParameterError(f"free_params: {unknown} are not parameters of {model.name!r}")
-    cov = as_matrix(covariance, (len(names), len(names)), "covariance")
-    depth = as_positive_float(depth_m, "depth_m")
-    px = as_points(pixels, 2, "pixels")
-    idx = [model.param_names.index(n) for n in names]
-    X = model.unproject_depth(px, np.full(px.shape[:-1], depth))
-    _, _, dk = model.project_with_jacobian(X)
-    J = dk[..., idx]
-    C = np.einsum("...ai,ij,...bj->...ab", J, cov, J)
-    tr, det = C[..., 0, 0] + C[..., 1, 1], C[..., 0, 0] * C[..., 1, 1] - C[..., 0, 1] ** 2
-    lam = tr / 2 + np.sqrt(np.maximum(tr * tr / 4 - det, 0.0))
-    return np.sqrt(np.maximum(lam, 0.0))
+    return Figure(figsize=figsize)
 
 
 def _fig_to_img(fig: Any, alt: str) -> str:
-    import matplotlib.pyplot as plt
-
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
     data = base64.b64encode(buf.getvalue()).decode()
     return f'<img class="fig" alt="{html.escape(alt)}" src="data:image/png;base64,{data}">'
 
@@ -79,7 +52,9 @@ def _image_axes(ax: Any, model: CameraModel) -> None:
     ax.set_ylabel("y (px)")
 
 
-def _thumb(img: np.ndarray, width: int) -> tuple[np.ndarray, float]:
+def _thumb(img: np.ndarray, width: int, full_width: int) -> tuple[np.ndarray, float]:
+    """The image shown ``width`` px wide, stretched to [0, 1], and the scale from the full
+    image's pixels (``full_width`` wide; ``img`` may already be a thumbnail of it)."""
     from camkit.resample import resize
 
     s = width / img.shape[1]
@@ -90,7 +65,7 @@ def _thumb(img: np.ndarray, width: int) -> tuple[np.ndarray, float]:
     # otherwise show nearly black.
     lo, hi = np.percentile(small, [0.5, 99.5])
     small = (small - lo) / max(hi - lo, 1e-12)
-    return np.clip(small, 0, 1), small.shape[1] / img.shape[1]
+    return np.clip(small, 0, 1), small.shape[1] / full_width
 
 
 def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] | None = None,
@@ -105,20 +80,19 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     Parameters
     ----------
     result : CalibrationResult
-    images : sequence of arrays or paths, optional
-        The input images, for the thumbnails (in input order).
+    images : sequence of arrays, optional
+        The input images or thumbnails of them (any size with the images' aspect; in input
+        order), for the thumbnails. :func:`camkit.pipeline.calibrate_files` passes the
+        thumbnails it kept while detecting: no image is decoded twice.
     image_names : sequence of str, optional
     truth : CameraModel, optional
     image_info : sequence of ImageInfo or None, optional
         The images' EXIF (camera, lens, focal length, orientation), shown when present.
     """
-    import matplotlib
+    from matplotlib import colormaps
+    from matplotlib.patches import Rectangle
 
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    from camkit.calib.calibrate import CalibrationResult
-    from camkit.io.images import read_image
+    from camkit.calib.result import CalibrationResult
 
     if not isinstance(result, CalibrationResult):
         raise ParameterError(f"result: expected a CalibrationResult, got {type(result).__name__}")
@@ -130,12 +104,18 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
         raise ParameterError(f"image_names: expected {n_in} names, got {len(names)}")
     if images is not None and len(images) != n_in:
         raise ParameterError(f"images: expected {n_in} images (one per input view), got {len(images)}")
+    if images is not None:
+        for k, img in enumerate(images):
+            if not isinstance(img, np.ndarray) or img.ndim not in (2, 3):
+                raise ParameterError(f"images[{k}]: expected an image array (a thumbnail will do), got "
+                                     f"{type(img).__name__}")
     W, H = model.width, model.height
     vnames = [names[i] for i in result.view_indices]
     figs: list[tuple[str, str, str]] = []
 
     # Per-view RMS.
-    fig, ax = plt.subplots(figsize=(9, 3.2))
+    fig = _figure((9, 3.2))
+    ax = fig.subplots()
     ax.bar(np.arange(len(vnames)), result.view_rms_px, color="#4477aa")
     ax.axhline(result.rms_px, color="#cc3311", lw=1, label=f"overall RMS {result.rms_px:.3f} px")
     ax.set_xticks(np.arange(len(vnames)), vnames, rotation=60, ha="right", fontsize=7)
@@ -146,8 +126,9 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
 
     # Residuals: scatter and vectors over the image.
     resid_views = result.residuals  # per used view, (N_i, 2)
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1, 1.45]})
-    cmap = plt.get_cmap("tab20")
+    fig = _figure((11, 4.4))
+    a1, a2 = fig.subplots(1, 2, gridspec_kw={"width_ratios": [1, 1.45]})
+    cmap = colormaps["tab20"]
     for k, r in enumerate(resid_views):
         a1.scatter(r[:, 0], r[:, 1], s=4, color=cmap(k % 20), alpha=0.7)
     lim = max(float(np.nanmax(np.abs(np.concatenate(resid_views)))) * 1.1, 1e-3)
@@ -173,7 +154,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
                  "radial pattern means the lens model is too simple."))
 
     # Coverage.
-    fig, ax = plt.subplots(figsize=(6.4, 6.4 * H / W + 0.6))
+    fig = _figure((6.4, 6.4 * H / W + 0.6))
+    ax = fig.subplots()
     nx, ny = 16, max(round(16 * H / W), 1)
     good = pts[np.isfinite(pts).all(axis=1)]
     counts, _, _ = np.histogram2d(good[:, 0], good[:, 1], bins=[nx, ny], range=[[-0.5, W - 0.5], [-0.5, H - 0.5]])
@@ -181,8 +163,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
                    vmax=max(counts.max(), 1))
     empty = np.argwhere(counts.T == 0)
     for cy, cx in empty:
-        ax.add_patch(plt.Rectangle((-0.5 + cx * W / nx, -0.5 + cy * H / ny), W / nx, H / ny, fill=False,
-                                   hatch="///", edgecolor="#cc3311", lw=0))
+        ax.add_patch(Rectangle((-0.5 + cx * W / nx, -0.5 + cy * H / ny), W / nx, H / ny, fill=False,
+                               hatch="///", edgecolor="#cc3311", lw=0))
     ax.scatter(good[:, 0], good[:, 1], s=1, color="k", alpha=0.5)
     _image_axes(ax, model)
     fig.colorbar(im, ax=ax, fraction=0.04, label="corners per cell")
@@ -199,7 +181,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     z = np.where(front, rays[..., 2], np.nan)
     ideal = np.stack([model.fx * rays[..., 0] / z + model.cx, model.fy * rays[..., 1] / z + model.cy], -1)
     disp = pix - ideal
-    fig, ax = plt.subplots(figsize=(6.4, 6.4 * H / W + 0.6))
+    fig = _figure((6.4, 6.4 * H / W + 0.6))
+    ax = fig.subplots()
     m = np.hypot(disp[..., 0], disp[..., 1])
     im = ax.imshow(m, extent=(-0.5, W - 0.5, H - 0.5, -0.5), cmap="magma", interpolation="bilinear")
     ax.quiver(ideal[..., 0], ideal[..., 1], disp[..., 0], disp[..., 1], color="w", angles="xy", scale_units="xy",
@@ -214,7 +197,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     depth = float(np.median([p.t[2] for p in result.poses]))
     gx, gy = _grid(model, 41)
     sig = projection_uncertainty(model, result.covariance, result.free_params, np.stack([gx, gy], -1), depth)
-    fig, ax = plt.subplots(figsize=(6.4, 6.4 * H / W + 0.6))
+    fig = _figure((6.4, 6.4 * H / W + 0.6))
+    ax = fig.subplots()
     top = float(np.nanpercentile(sig, 90))
     im = ax.imshow(sig, extent=(-0.5, W - 0.5, H - 0.5, -0.5), cmap="viridis", interpolation="bilinear",
                    vmin=0, vmax=top)
@@ -233,7 +217,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
         n = len(images)
         cols = 5
         rows = -(-n // cols)
-        fig, axes = plt.subplots(rows, cols, figsize=(cols * 2.4, rows * 2.4 * H / W + 0.3 * rows), squeeze=False)
+        fig = _figure((cols * 2.4, rows * 2.4 * H / W + 0.3 * rows))
+        axes = fig.subplots(rows, cols, squeeze=False)
         pos = {v: k for k, v in enumerate(result.view_indices)}
         bad = {(v, c) for v, c, _ in result.rejected}
         for i in range(rows * cols):
@@ -241,8 +226,7 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
             ax.axis("off")
             if i >= n:
                 continue
-            img = images[i] if isinstance(images[i], np.ndarray) else read_image(images[i])
-            small, s = _thumb(img, 240)
+            small, s = _thumb(images[i], 240, W)
             ax.imshow(small, cmap="grey" if small.ndim == 2 else None, vmin=0, vmax=1)
             c = result.detections[i].corners if result.detections is not None else None
             if c is not None:

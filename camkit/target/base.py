@@ -146,6 +146,11 @@ class Target(abc.ABC):
         """``(u_min, v_min, u_max, v_max)`` of the printed sheet, metres, target frame."""
         return self.sheet().extent
 
+    def size_note(self) -> str:
+        """What a user should check when the target is not found: its size as they gave it
+        (completes "Check the ...")."""
+        return f"target's size and layout ({self!r})"
+
     @classmethod
     @abc.abstractmethod
     def example(cls) -> Self:

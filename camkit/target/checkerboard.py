@@ -85,6 +85,9 @@ class Checkerboard(Target):
                  "Print at 100 % (actual size) and measure a square.")
         return Sheet(self.extent(), np.stack([u0, v0, u0 + s, v0 + s], axis=-1), label)
 
+    def size_note(self) -> str:
+        return f"board size (inner corners {self.inner_cols}x{self.inner_rows}, not squares)"
+
     def detect(self, image: np.ndarray) -> Detection:
         """The inner corners in ``image``: :func:`detect_corners`."""
         return detect_corners(image, self)

@@ -6,8 +6,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from camkit.calib import DEFAULT_FIX, calibrate, calibrate_images
+from camkit.calib import DEFAULT_FIX, calibrate
 from camkit.errors import ParameterError, ShapeError
+from camkit.pipeline import calibrate_files
 from camkit.render import default_camera, plan_views, render_checkerboard
 from camkit.target import Checkerboard, detect_corners
 
@@ -19,8 +20,8 @@ def test_bouguet_real_set(shared_data):
     folder = shared_data / "bouguet_calib_example"
     board = Checkerboard(12, 13, 0.030)
     files = [folder / f"Image{k}.tif" for k in range(1, 21)]
-    # Default settings, end to end from the files (camkit's own TIFF reader).
-    res = calibrate_images(files, board)
+    # Default settings, end to end from the files (read through tifffile, each decoded once).
+    res = calibrate_files(files, board).result
     assert len(res.detections) == 20
     for k, det in enumerate(res.detections):
         assert det.found, f"Image{k + 1}: {det.message}"

@@ -1,0 +1,125 @@
+"""Closed-form starts for calibration: intrinsics and poses from views of a planar target,
+chosen by the lens model (:meth:`CameraModel.start_projection`), and linear distortion terms
+(:attr:`CameraModel.linear_start_terms`)."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from camkit.calib.homography import find_homography
+from camkit.calib.result import stacked_points
+from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
+from camkit.errors import EstimationError, ParameterError
+from camkit.geometry.pose import Pose
+from camkit.lens.base import CameraModel
+
+__all__ = ["STARTS", "closed_form_start", "equidistant_start", "linear_distortion_start", "perspective_start"]
+
+
+def perspective_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, height: int,
+                      zero_skew: bool) -> tuple[np.ndarray, list[Pose]]:
+    """Zhang's closed form (Z. Zhang, "A flexible new technique for camera calibration", IEEE
+    TPAMI 22(11), 2000, sec. 3.1): a homography per view (normalised DLT; the final refinement
+    makes their own refinement needless), K from their constraints, then each view's pose."""
+    Hs = []
+    for o, p in zip(objs, imgs, strict=True):
+        ok = np.isfinite(p).all(axis=1)
+        Hs.append(find_homography(o[ok, :2], p[ok], refine=False))
+    K = intrinsics_from_homographies(Hs, zero_skew=zero_skew)
+    return K, poses_from_homographies(K, Hs)
+
+
+def equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int,
+                       height: int) -> tuple[np.ndarray, list[Pose]]:
+    """K and poses for a fisheye lens from the equidistant model ``r = f theta`` about the
+    image centre: for a trial f each pixel becomes a ray, rays within 80 degrees of the axis a
+    point on the normalised plane, and a homography per view is fitted to them; the f whose
+    homographies explain the rays best (smallest median angle) wins, on a grid of 41 field
+    angles for the farthest corner, 15-175 degrees, then refined on a finer grid."""
+    c = np.array([(width - 1) / 2.0, (height - 1) / 2.0])
+    r_max = max(float(np.nanmax(np.hypot(*(p - c).T))) for p in imgs)
+
+    def fit(f: float) -> tuple[float, list[np.ndarray]]:
+        errs, Hs = [], []
+        for o, p in zip(objs, imgs, strict=True):
+            d = p - c
+            r = np.hypot(d[:, 0], d[:, 1])
+            theta = r / f
+            ok = np.isfinite(r) & (theta < np.radians(80.0))
+            if ok.sum() < 4:
+                return np.inf, []
+            scale = np.tan(theta[ok]) / np.maximum(r[ok], 1e-12)
+            xn = d[ok] * scale[:, None]
+            try:
+                H = find_homography(o[ok, :2], xn, refine=False)
+            except EstimationError:
+                return np.inf, []
+            q = np.c_[o[ok, :2], np.ones(ok.sum())] @ H.T
+            ray_h = q / np.linalg.norm(q, axis=1, keepdims=True) * np.sign(q[:, 2:3])
+            ray_o = np.c_[np.sin(theta[ok])[:, None] * d[ok] / np.maximum(r[ok], 1e-12)[:, None],
+                          np.cos(theta[ok])]
+            errs.append(np.arccos(np.clip((ray_h * ray_o).sum(axis=1), -1.0, 1.0)))
+            Hs.append(H)
+        return float(np.median(np.concatenate(errs))), Hs
+
+    grid = r_max / np.radians(np.linspace(15.0, 175.0, 41))
+    scores = [fit(f)[0] for f in grid]
+    k = int(np.argmin(scores))
+    if not np.isfinite(scores[k]):
+        raise EstimationError("start: no focal length explains the corners as views of a plane through a fisheye "
+                              "lens; check the object points' units and the image points' order")
+    lo, hi = grid[min(k + 1, len(grid) - 1)], grid[max(k - 1, 0)]
+    fine = np.linspace(lo, hi, 11)
+    f = float(fine[int(np.argmin([fit(v)[0] for v in fine]))])
+    _, Hs = fit(f)
+    K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
+    return K, poses_from_homographies(K, [K @ H for H in Hs])
+
+
+def _equidistant(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, height: int,
+                 zero_skew: bool) -> tuple[np.ndarray, list[Pose]]:
+    return equidistant_start(objs, imgs, width, height)
+
+
+#: The starts by :meth:`CameraModel.start_projection`.
+STARTS: dict[str, Callable[..., tuple[np.ndarray, list[Pose]]]] = {
+    "perspective": perspective_start,
+    "equidistant": _equidistant,
+}
+
+
+def closed_form_start(cls: type[CameraModel], objs: list[np.ndarray], imgs: list[np.ndarray], width: int,
+                      height: int, zero_skew: bool) -> tuple[np.ndarray, list[Pose]]:
+    """K and the poses for the views, by the start the model asks for."""
+    kind = cls.start_projection()
+    if kind not in STARTS:
+        raise ParameterError(f"{cls.__name__}.start_projection(): expected one of {sorted(STARTS)}, got {kind!r}")
+    return STARTS[kind](objs, imgs, width, height, zero_skew)
+
+
+def linear_distortion_start(cam: CameraModel, objs: list[np.ndarray], imgs: list[np.ndarray], poses: list[Pose],
+                            free_names: set[str]) -> CameraModel:
+    """The model's ``linear_start_terms`` (radial terms multiplying the ideal offset by r^2,
+    r^4, ...) by linear least squares from the pinhole start (Zhang 2000, eq. 13), where all of
+    them are free; else the model unchanged. A start outside the model's valid parameters
+    keeps the model unchanged too."""
+    terms = cam.linear_start_terms
+    if not terms or not set(terms) <= free_names:
+        return cam
+    X = stacked_points(objs, poses)  # all views at once
+    p = np.concatenate(imgs)
+    ok = np.isfinite(p).all(axis=1)
+    X, p = X[ok], p[ok]
+    x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
+    r2 = x * x + y * y
+    du, dv = cam.fx * x, cam.fy * y  # ideal pixel minus the principal point
+    powers = [r2 ** (k + 1) for k in range(len(terms))]
+    rows = [np.stack([du * q for q in powers], -1), np.stack([dv * q for q in powers], -1)]
+    rhs = [p[:, 0] - cam.cx - du, p[:, 1] - cam.cy - dv]
+    k = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
+    try:
+        return cam.replace(**{t: float(v) for t, v in zip(terms, k, strict=True)})
+    except ParameterError:
+        return cam
