@@ -17,7 +17,8 @@ from camkit.target import Target
 #: Width of the thumbnails kept for the report (pixels).
 THUMBNAIL_WIDTH = 240
 
-__all__ = ["CalibrationJob", "InputImages", "calibrate_files", "collect_images", "prepare_outputs"]
+__all__ = ["CalibrationJob", "InputImages", "UndistortJob", "calibrate_files", "collect_images", "prepare_outputs",
+           "undistort_files"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -196,3 +197,59 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
         if progress is not None:
             progress("report", 1, 1)
     return CalibrationJob(result, names, cam_path, res_path, rep_path, info)
+
+
+@dataclass(frozen=True, slots=True)
+class UndistortJob:
+    """What :func:`undistort_files` wrote: the PNG files (in input order), their folder, and
+    the pinhole camera they were taken with."""
+
+    written: list[Path]
+    out_dir: Path
+    new_model: CameraModel
+
+
+def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_dir: str | os.PathLike, *,
+                    alpha: float = 0.0, interpolation: str = "bicubic",
+                    progress: Callable[[str, int, int], None] | None = None,
+                    output_option: str = "out_dir") -> UndistortJob:
+    """Undistort image files into ``out_dir`` as PNG (same stem), seen through the pinhole
+    :func:`camkit.resample.optimal_pinhole` (``alpha``: 0 keeps only valid pixels, 1 keeps
+    every source pixel) of ``model``.
+
+    Everything is checked before the first file is written: the folder is created (or
+    refused), no two inputs share a stem, no output is one of the inputs. Each file is written
+    atomically; an image whose size is not the camera's is refused with its name.
+    ``progress(stage, done, total)`` is called after each image (stage ``"undistort"``);
+    ``output_option`` names the output in messages (the command line's ``-o``).
+    """
+    from camkit.io import read_image, write_png
+    from camkit.resample import optimal_pinhole, undistort_image
+
+    if not isinstance(model, CameraModel):
+        raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
+    images = [Path(p) for p in paths]
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the undistorted images")
+    inputs = {p.resolve() for p in images}
+    targets = [out / (p.stem + ".png") for p in images]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
+    for t in targets:
+        if t.resolve() in inputs:
+            raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
+    new = optimal_pinhole(model, alpha)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    for k, (src, dst) in enumerate(zip(images, targets, strict=True)):
+        img = read_image(src)
+        if img.shape[1] != model.width or img.shape[0] != model.height:
+            raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
+                                 f"{img.shape[1]}x{img.shape[0]}")
+        write_png(dst, undistort_image(img, model, new, interpolation=interpolation))
+        if progress is not None:
+            progress("undistort", k + 1, len(targets))
+    return UndistortJob(targets, out, new)

@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from camkit import __version__
-from camkit.errors import CamkitError, EstimationError, ParameterError
+from camkit.errors import CamkitError, EstimationError
 
 __all__ = ["main"]
 
@@ -195,40 +195,18 @@ def _cmd_board(args: argparse.Namespace) -> int:
 
 
 def _cmd_undistort(args: argparse.Namespace) -> int:
-    from pathlib import Path
-
-    from camkit.io import read_camera, read_image, write_png
-    from camkit.pipeline import collect_images
-    from camkit.resample import optimal_pinhole, undistort_image
+    from camkit.io import read_camera
+    from camkit.pipeline import collect_images, undistort_files
 
     console = _console()
     model = read_camera(args.camera)
     images = collect_images(args.images).paths
-    out = Path(args.output)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"-o: {out} is a file; expected a folder for the undistorted images")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ParameterError(f"-o: cannot create the folder {out} ({exc.strerror or exc})") from None
-    inputs = {p.resolve() for p in images}
-    new = optimal_pinhole(model, args.alpha)
-    targets = [out / (p.stem + ".png") for p in images]
-    if len({t.resolve() for t in targets}) != len(targets):
-        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
-    for t in targets:
-        if t.resolve() in inputs:
-            raise ParameterError(f"-o: {t} is one of the input images; camkit never overwrites an input")
     with _Progress(console) as progress:
-        for k, (src, dst) in enumerate(zip(images, targets, strict=True)):
-            img = read_image(src)
-            if img.shape[1] != model.width or img.shape[0] != model.height:
-                raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
-                                     f"{img.shape[1]}x{img.shape[0]}")
-            write_png(dst, undistort_image(img, model, new, interpolation=args.interpolation))
-            progress("undistort", k + 1, len(targets))
-    console.print(f"wrote {len(targets)} images to {out}; the undistorted camera is a pinhole with fx={new.fx:.2f} "
-                  f"fy={new.fy:.2f} cx={new.cx:.2f} cy={new.cy:.2f} ({new.width}x{new.height})")
+        job = undistort_files(images, model, args.output, alpha=args.alpha, interpolation=args.interpolation,
+                              progress=progress, output_option="-o")
+    new = job.new_model
+    console.print(f"wrote {len(job.written)} images to {job.out_dir}; the undistorted camera is a pinhole with "
+                  f"fx={new.fx:.2f} fy={new.fy:.2f} cx={new.cx:.2f} cy={new.cy:.2f} ({new.width}x{new.height})")
     return 0
 
 
