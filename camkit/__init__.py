@@ -8,9 +8,8 @@ import os
 
 # camkit's parallel kernels run on numba's OpenMP pool. libgomp's default keeps its idle
 # workers spinning for milliseconds after every parallel loop, which takes a core from
-# whatever the caller runs next: cv2.resize INTER_AREA measured 2.5 ms alone and 4.1-4.6 ms
-# right after a camkit halving on 2 cores. Sleeping workers cost a wake-up (microseconds) per
-# parallel loop instead. libgomp reads this once, when numba first loads it (at the first
+# whatever the caller runs next (benchmarks/notes.md has the measurement). Sleeping workers
+# cost a wake-up per parallel loop instead. libgomp reads this once, when numba first loads it (at the first
 # parallel call), so it is set here, before any kernel runs; a value the user set wins
 # (docs/conventions.md, "Threads").
 os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

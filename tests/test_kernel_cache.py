@@ -11,7 +11,7 @@ import sys
 
 SCRIPT = """
 import json, numpy as np
-from camkit._kernels import remap as kr
+from camkit._kernels import remap as remap_kernels
 from camkit.resample import remap, warp_perspective
 img = np.zeros((8, 8, 3), np.uint8)
 remap(img, np.zeros((4, 4, 2), np.float32))                   # uint8 RGB bilinear kernel (SIMD)
@@ -19,8 +19,8 @@ remap(img, np.zeros((4, 4, 2), np.float32), interpolation="bicubic")  # uint8 RG
 remap(img.astype(np.float32), np.zeros((4, 4, 2)), interpolation="bicubic")
 warp_perspective(img[..., :2], np.eye(3), width=4, height=4, interpolation="lanczos3")
 warp_perspective(img, np.eye(3), width=4, height=4, interpolation="lanczos3")
-used = [kr.BILINEAR_U8C3["map"].main, kr.RGB["map"][2], kr.REMAP[2], kr.WARP_PERSPECTIVE[3],
-        kr.RGB["perspective"][3]]
+used = [remap_kernels.BILINEAR_U8C3["map"].main, remap_kernels.RGB["map"][2], remap_kernels.REMAP[2], remap_kernels.WARP_PERSPECTIVE[3],
+        remap_kernels.RGB["perspective"][3]]
 print(json.dumps([[sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())] for d in used]))
 """
 

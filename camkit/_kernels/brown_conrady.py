@@ -120,7 +120,7 @@ def project_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid:
 
 def project(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
             out: np.ndarray) -> None:
-    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs more than their work)."""
     if pts.shape[0] < PARALLEL_MIN_ROWS:
         project_rows(pts, intr, c, r2_valid, out, 0, pts.shape[0])
     else:
@@ -213,7 +213,7 @@ def project_jacobian_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, 
 
 def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, r2_valid: float,
                      uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:
-    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs more than their work)."""
     if pts.shape[0] < PARALLEL_MIN_ROWS:
         project_jacobian_rows(pts, intr, c, r2_valid, uv, dp, dk, 0, pts.shape[0])
     else:

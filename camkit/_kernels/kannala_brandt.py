@@ -132,7 +132,7 @@ def project_jacobian_parallel(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, 
 
 def project_jacobian(pts: np.ndarray, intr: np.ndarray, c: np.ndarray, t_valid: float,
                      uv: np.ndarray, dp: np.ndarray, dk: np.ndarray) -> None:
-    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs more than their work)."""
     if pts.shape[0] < PARALLEL_MIN_ROWS:
         project_jacobian_rows(pts, intr, c, t_valid, uv, dp, dk, 0, pts.shape[0])
     else:

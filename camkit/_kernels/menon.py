@@ -8,7 +8,7 @@ from colour differences along the chosen direction, and the paper's refinement s
 Layout. The stages run row by row, one after another with a fixed lag, on ring buffers of
 ``RING`` rows per plane (the planes of a 12 MP image never exist in full: they stayed in
 memory at ~48 MB each and were written and read back once per stage, which with the page
-faults of their first touch made the old multi-pass version ~3x slower). Within a ring row
+faults of their first touch made the old multi-pass version several times slower). Within a ring row
 the columns are stored deinterleaved, even columns then odd ones, so that every stage's
 loop over one kind of site (red/blue or green) runs over contiguous memory and vectorises.
 The image is cut into horizontal strips run in parallel

@@ -15,7 +15,7 @@ from numba import njit, prange, types
 from numba.extending import overload
 
 from camkit._kernels.interp import border_index, lanczos3, sat, store
-from camkit._kernels.simd import (
+from camkit._kernels.simd_gather import (
     blend_rgb,
     blend_rgb_at,
     blend_scalar_c3,
@@ -133,15 +133,14 @@ def _make(N: int, KIND: int, RGB: int = 0):
     kernels in a new process (closures over functions get a fresh cache key in every process,
     so they recompile).
     For 3 channels, the pixels with every tap inside take ``blend_rgb`` (explicit SIMD for
-    uint8; see camkit._kernels.simd) where its vector loads stay inside the image; the rest are
+    uint8; see camkit._kernels.simd_gather) where its vector loads stay inside the image; the rest are
     listed and go through the border rules after the row, out of the hot loop. The channel
-    count known at compile time (RGB = 1) leaves the general channel loop out of the kernel:
-    measured on the bicubic uint8 RGB remap of 12 MP, 156 -> 143 ms.
+    count known at compile time (RGB = 1) leaves the general channel loop out of the kernel.
     Bicubic on 3 channels (RGB = 1, N = 4) runs each row in two phases: phase 1, branch-free
     so that it vectorises, turns the row's positions into offsets and float32 weights (in the
     positions' type: float32 for float32 maps); phase 2 blends the pixels with every tap
-    inside (``blend_rgb_at``) and lists the others for the border rules. Measured on the 12 MP
-    undistortion (one process, 15 alternated calls): 150 -> 132 ms, cv2.remap INTER_CUBIC 161."""
+    inside (``blend_rgb_at``) and lists the others for the border rules. Measurements:
+    benchmarks/notes.md."""
     SPAN = span(N, 3)  # bytes blend_rgb reads from each row's first tap
     TWO = RGB == 1 and N == 4
 
@@ -296,16 +295,13 @@ def _make_bilinear_u8c3(KIND: int, TR: int = 32, TC: int = 128):
     is first split into its x and y planes by ``unzip_xy``: read in place, at a stride of two
     floats, LLVM left the loop scalar); phase 2 gathers and blends each pixel with
     ``lerp_u8c3`` (explicit SIMD, float32, two lerps; before it ``blend_u8c3``'s weighted sum,
-    and before that 11-bit fixed-point scalar code). Measured on the 12 MP undistortion map,
-    one process, 21 alternated calls: the split and int32 offsets 78 -> 66 ms, the 4-byte
-    stores 66 -> 64, the lerps 63 -> 51 ms (cv2.remap float32 maps 70 ms, CV_16SC2 55 ms); the
-    perspective warp 83 -> 62 ms (cv2.warpPerspective 80 ms); the offsets multiplied in 32 bits
-    (``offset_i32``; numba's int32 products are int64) 46.5 -> 43.8 and 62.8 -> 58.4 ms. For a
-    map, the pixels whose taps leave the image (or whose vector loads would) take the border
-    rules after phase 2, out of its loop, which then keeps its constants in registers (50 -> 46
-    ms); for the warps, phase 2 writes the fill value and the pixels that need the border rules are redone
-    by a second kernel, ``fix`` (that slow path anywhere in the warps' first kernel, even in a
-    loop of its own, cost it 10-15%)."""
+    and before that 11-bit fixed-point scalar code); offsets are multiplied in 32 bits
+    (``offset_i32``; numba's int32 products are int64). For a map, the pixels whose taps leave
+    the image (or whose vector loads would) take the border rules after phase 2, out of its
+    loop, which then keeps its constants in registers; for the warps, phase 2 writes the fill
+    value and the pixels that need the border rules are redone by a second kernel, ``fix``
+    (that slow path anywhere in the warps' first kernel, even in a loop of its own, slowed
+    it). Measurements: benchmarks/notes.md."""
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
     def main(img, mp, border, fill, fill_far, todo_all, row_ok, out):  # pragma: no cover
@@ -330,11 +326,9 @@ def _make_bilinear_u8c3(KIND: int, TR: int = 32, TC: int = 128):
         f0, f1, f2 = np.uint8(fill_far[0]), np.uint8(fill_far[1]), np.uint8(fill_far[2])
         no_far = fill_far[3] == 0
         # Warps: tiles of TR rows x TC columns, so that a rotated warp's taps (one output row
-        # crosses ~80 input rows at 1 degree over 4000 px) stay in cache while a tile is made.
-        # Measured on the benchmark's 12 MP perspective warp, one process, 11 alternated calls:
-        # whole rows 91 ms; tiles 8x512 87, 16x256 80, 32x128 78, 64x64 81, 4x1024 90 ms;
-        # cv2.warpPerspective 83 ms (and 72 ms for whole rows without the rotation). The map
-        # (near the identity) runs whole rows (tiling it measured no gain).
+        # crosses ~80 input rows at 1 degree over 4000 px) stay in cache while a tile is made;
+        # 32x128 measured best (benchmarks/notes.md). The map (near the identity) runs whole
+        # rows (tiling it measured no gain).
         tc = TC if KIND != 0 else Wo
         for b in prange((Ho + TR - 1) // TR):
             r0 = b * TR
@@ -353,8 +347,7 @@ def _make_bilinear_u8c3(KIND: int, TR: int = 32, TC: int = 128):
                     nds = nd[r - r0, cs:cs + n]
                     # The row's constant terms in float64, the per-pixel arithmetic of the warps
                     # in float32 (8 lanes, not 4, and float32 -> int32 conversions, which AVX2 has
-                    # packed; measured 97 -> 76 ms per perspective warp of 12 MP). Positions are
-                    # then within ~5e-4 px of the float64 ones at 4000 px.
+                    # packed). Positions are then within ~5e-4 px of the float64 ones at 4000 px.
                     bx = F32(m01 * r + m02)
                     by = F32(m11 * r + m12)
                     bw = F32(m21 * r + m22)

@@ -13,7 +13,7 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
 
-from camkit._kernels.simd import filter_even_odd, split_even_odd_c3, vertical_even_odd_c3
+from camkit._kernels.simd_resize import filter_even_odd, split_even_odd_c3, vertical_even_odd_c3
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath={"contract"})
@@ -110,28 +110,24 @@ def make_vertical_horizontal(KY: int, KX: int, C: int, STEP: int):
     with KX > 0, a shared row of KX horizontal weights for the outputs away from the borders,
     every STEP input pixels (STEP = 0: the ``step`` argument).
     The tap and channel counts are compile-time constants, so the tap loops unroll and the
-    loops over a row, the innermost ones, vectorise with the taps in registers (measured per
-    12 MP halving, one core: vertical 13 -> 8 ms, horizontal 15.5 -> 7 ms). With a known
+    loops over a row, the innermost ones, vectorise with the taps in registers. With a known
     STEP, each iteration makes two output rows, converting each input byte once for both
-    (12 MP RGB halving, both cores: 8.7 against 10.0 ms; four rows at once did not vectorise).
+    (four rows at once did not vectorise).
     RGB halving (C = 3, STEP = 2): each vertical sum is split into its even and its odd pixels
     (``split_even_odd_c3``, explicit SIMD), so the horizontal filter runs at the output rate
     along both halves, unit-stride, storing straight into the output row: half the FMAs of the
-    full-rate filter and no strided pick (12 MP halving, one process, 41 alternated calls:
-    8.2 -> 7.5 ms).
+    full-rate filter and no strided pick.
     uint8 RGB halving, explicit SIMD (``vertical_even_odd_c3``, ``filter_even_odd``): four
     output rows per iteration, their 14 input rows converted once for all four, the sums
     stored already split into even and odd pixels (no row of sums written, read back and
     split); the horizontal filter loads its weights once per row, adds from +0.5 and narrows
     to bytes with saturating packs (no float clamp, no per-vector test of ``is_int``). Same
-    sums in the same order, so the same bytes. One process, 41 alternated calls on the 12 MP
-    image: 0.79 of the time of the two-row code (6.3 against 7.9 ms).
+    sums in the same order, so the same bytes.
     With Keys' a = -0.5 weights (the default bicubic halving, away from the borders) and AVX2,
     those sums are exact integer sums (``vsum_eo_u8c3_keys2``: the weights factor as
     [1, 3, 3, 1] * [-3, 0, 38, 0, -3] / 256), stored times 256; the horizontal weights (and
-    the border outputs' sums) are then taken over 256. One process, 41 alternated calls:
-    0.83-0.87 of the time of the float sums (5.0-5.5 against 5.9-6.3 ms), the same bytes on
-    the 12 MP image.
+    the border outputs' sums) are then taken over 256; the same bytes as the float sums.
+    Measurements of each step: benchmarks/notes.md.
     Rows near the borders, whose input windows are not STEP apart, and other dtypes take the
     two-row and one-row loops and the split."""
     EO = int(C == 3 and STEP == 2 and KX > 0)
@@ -281,8 +277,8 @@ def make_horizontal_vertical(KX: int, KY: int, C: int, P: int, Q: int):
     decimated work, 8 lanes at a time), and the outputs of the phase are read every Q input
     pixels; the weight table serves the outputs near the borders. The vertical sum of the KY
     ring rows is unrolled for 1, 2, 4 and 6 taps (the kernels' supports when not shrinking),
-    with the rounding store in the same loop. Measured on 4000x3000 -> 6000x4500 RGB uint8,
-    both cores: 37 ms against 125 ms for the table-driven passes it replaces."""
+    with the rounding store in the same loop (against the table-driven passes it replaces:
+    benchmarks/notes.md)."""
 
     @njit(cache=True, nogil=True, parallel=True, error_model="numpy", fastmath={"contract"})
     def kernel(src, sy, wy, sx, wx, pw, pfirst, c0, M, zero, is_int, hi, out, n_strips):  # pragma: no cover - numba

@@ -29,7 +29,7 @@ def rigid_apply_parallel(R: np.ndarray, t: np.ndarray, pts: np.ndarray, out: np.
 
 
 def rigid_apply(R: np.ndarray, t: np.ndarray, pts: np.ndarray, out: np.ndarray) -> None:
-    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs ~1 ms here)."""
+    """Serial below PARALLEL_MIN_ROWS rows (a parallel launch costs more than their work)."""
     if pts.shape[0] < PARALLEL_MIN_ROWS:
         rigid_apply_rows(R, t, pts, out, 0, pts.shape[0])
     else:

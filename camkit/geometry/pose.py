@@ -12,7 +12,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from camkit._kernels import transform as _kt
+from camkit._kernels import transform as transform_kernels
 from camkit._validate import as_matrix, as_points, as_real_array, as_rotation_matrix
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.rotation import matrix_from_rvec, matrix_from_ypr, rvec_from_matrix, ypr_from_matrix
@@ -151,7 +151,7 @@ class Pose:
         p = as_points(points, 3, "points", nan_rows=True)
         flat = np.ascontiguousarray(p.reshape(-1, 3))
         out = np.empty_like(flat)
-        _kt.rigid_apply(self.R, self.t, flat, out)
+        transform_kernels.rigid_apply(self.R, self.t, flat, out)
         return out.reshape(p.shape)
 
     def allclose(self, other: Pose, *, atol: float = 1e-9) -> bool:

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from camkit._kernels import rotation as _k
+from camkit._kernels import rotation as rotation_kernels
 from camkit._validate import as_points, as_rotation_matrix
 from camkit.errors import ParameterError
 
@@ -63,7 +63,7 @@ def matrix_from_rvec(rvec: Any) -> np.ndarray:
     r = as_points(rvec, 3, "rvec")
     flat = _rows(r, (3,))
     out = np.empty((flat.shape[0], 3, 3))
-    _k.rvec_to_matrix(flat, out)
+    rotation_kernels.rvec_to_matrix(flat, out)
     return out.reshape((*r.shape[:-1], 3, 3))
 
 
@@ -84,7 +84,7 @@ def quat_from_matrix(R: Any) -> np.ndarray:
     m = as_rotation_matrix(R, "R", batched=True)
     flat = _rows(m, (3, 3))
     out = np.empty((flat.shape[0], 4))
-    _k.matrix_to_quat(flat, out)
+    rotation_kernels.matrix_to_quat(flat, out)
     return out.reshape((*m.shape[:-2], 4))
 
 
@@ -106,7 +106,7 @@ def matrix_from_quat(quat: Any) -> np.ndarray:
         raise ParameterError("quat: expected non-zero quaternions, got one of norm < 1e-12")
     flat = _rows(q, (4,))
     out = np.empty((flat.shape[0], 3, 3))
-    _k.quat_to_matrix(flat, out)
+    rotation_kernels.quat_to_matrix(flat, out)
     return out.reshape((*q.shape[:-1], 3, 3))
 
 
@@ -133,9 +133,9 @@ def rvec_from_matrix(R: Any) -> np.ndarray:
     m = as_rotation_matrix(R, "R", batched=True)
     flat = _rows(m, (3, 3))
     q = np.empty((flat.shape[0], 4))
-    _k.matrix_to_quat(flat, q)
+    rotation_kernels.matrix_to_quat(flat, q)
     out = np.empty((flat.shape[0], 3))
-    _k.quat_to_rvec(q, out)
+    rotation_kernels.quat_to_rvec(q, out)
     return out.reshape((*m.shape[:-2], 3))
 
 

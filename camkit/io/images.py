@@ -577,8 +577,8 @@ def _raw_to_rgb(raw: RawImage) -> np.ndarray:
 # -- writing ------------------------------------------------------------------------------------
 
 #: The default zlib level of PNG writing: 1, OpenCV's ``IMWRITE_PNG_COMPRESSION`` default
-#: ("best speed"). On a noisy 1280x960 RGB render, level 1 encodes 4.6x faster than level 6
-#: (Pillow's default) for a file 15 % larger (benchmarks/notes.md, issue 20).
+#: ("best speed"): much faster than level 6 (Pillow's default) for a slightly larger file
+#: (benchmarks/notes.md, issue 20, has the figures).
 PNG_LEVEL = 1
 
 

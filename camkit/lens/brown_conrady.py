@@ -9,8 +9,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from camkit._kernels import brown_conrady as _kb
-from camkit._kernels import maps as _km
+from camkit._kernels import brown_conrady as brown_conrady_kernels
+from camkit._kernels import maps as maps_kernels
 from camkit.lens.base import CameraModel, register_model
 
 __all__ = ["BrownConrady"]
@@ -130,11 +130,11 @@ class BrownConrady(CameraModel):
         if r.size == 0 or not coeffs.any():
             return self
         out = dataclasses.replace(self)
-        out._cache["r_valid"] = float(_kb.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))
+        out._cache["r_valid"] = float(brown_conrady_kernels.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))
         return out
 
     def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
-        _km.pinhole_to_brown_conrady(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
+        maps_kernels.pinhole_to_brown_conrady(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
                                      self._r2_valid(), out)
         return True
 
@@ -168,7 +168,7 @@ class BrownConrady(CameraModel):
                 r = float("inf")
             else:
                 r_search = max(1.5, 3.0 * self.corner_radius())
-                r = float(_kb.valid_radius(c, r_search, 64, 512))
+                r = float(brown_conrady_kernels.valid_radius(c, r_search, 64, 512))
             self._cache["r_valid"] = r
         return r
 
@@ -178,16 +178,16 @@ class BrownConrady(CameraModel):
 
     def _project_rows(self, pts: np.ndarray) -> np.ndarray:
         out = np.empty((pts.shape[0], 2))
-        _kb.project(pts, self._intr(), self._coeffs(), self._r2_valid(), out)
+        brown_conrady_kernels.project(pts, self._intr(), self._coeffs(), self._r2_valid(), out)
         return out
 
     def _unproject_rows(self, px: np.ndarray) -> np.ndarray:
         out = np.empty((px.shape[0], 3))
         tol = _TOL_PX / max(self.fx, self.fy)
-        _kb.unproject(px, self._intr(), self._coeffs(), self._r2_valid(), tol, out)
+        brown_conrady_kernels.unproject(px, self._intr(), self._coeffs(), self._r2_valid(), tol, out)
         return out
 
     def _jacobian_rows(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         uv, dp, dk = self._jacobian_buffers(pts.shape[0])
-        _kb.project_jacobian(pts, self._intr(), self._coeffs(), self._r2_valid(), uv, dp, dk)
+        brown_conrady_kernels.project_jacobian(pts, self._intr(), self._coeffs(), self._r2_valid(), uv, dp, dk)
         return uv, dp, dk

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from camkit._kernels import chromatic as _kc
+from camkit._kernels import chromatic as chromatic_kernels
 from camkit._validate import as_finite_float, as_positive_int, check_choice
 from camkit.errors import ParameterError
 
@@ -114,7 +114,7 @@ class LateralChromaticAberration:
                 f"out to r = {r_hi:.3g} (1.5 times the corner radius): the channel would fold over"
             )
         out = np.empty((h, w, 2), dtype=dt)
-        _kc.radial_map(cx, cy, norm, v, c, b, bool(inverse), r_hi, out)
+        chromatic_kernels.radial_map(cx, cy, norm, v, c, b, bool(inverse), r_hi, out)
         return out
 
     def channels(self) -> dict[str, int]:

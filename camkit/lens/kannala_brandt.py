@@ -7,8 +7,8 @@ from typing import ClassVar
 
 import numpy as np
 
-from camkit._kernels import kannala_brandt as _kk
-from camkit._kernels import maps as _km
+from camkit._kernels import kannala_brandt as kannala_brandt_kernels
+from camkit._kernels import maps as maps_kernels
 from camkit.lens.base import CameraModel, register_model
 
 __all__ = ["KannalaBrandt"]
@@ -80,7 +80,7 @@ class KannalaBrandt(CameraModel):
                    width=1280, height=960)
 
     def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
-        _km.pinhole_to_kannala_brandt(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
+        maps_kernels.pinhole_to_kannala_brandt(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
                                       self.valid_theta, out)
         return True
 
@@ -98,27 +98,27 @@ class KannalaBrandt(CameraModel):
         """Largest angle off-axis (radians, at most pi) where the model is one-to-one."""
         t = self._cache.get("t_valid")
         if t is None:
-            t = float(_kk.valid_theta(self._coeffs(), 1 << 16))
+            t = float(kannala_brandt_kernels.valid_theta(self._coeffs(), 1 << 16))
             self._cache["t_valid"] = t
         return t
 
     def _project_rows(self, pts: np.ndarray) -> np.ndarray:
         out = np.empty((pts.shape[0], 2))
-        _kk.project(pts, self._intr(), self._coeffs(), self.valid_theta, out)
+        kannala_brandt_kernels.project(pts, self._intr(), self._coeffs(), self.valid_theta, out)
         return out
 
     def _unproject_rows(self, px: np.ndarray) -> np.ndarray:
         out = np.empty((px.shape[0], 3))
         c = self._coeffs()
         t_valid = self.valid_theta
-        td_valid = float(_kk.theta_d(t_valid, c)[0])
+        td_valid = float(kannala_brandt_kernels.theta_d(t_valid, c)[0])
         tol = _TOL_PX / max(self.fx, self.fy)
-        _kk.unproject(px, self._intr(), c, t_valid, td_valid, tol, out)
+        kannala_brandt_kernels.unproject(px, self._intr(), c, t_valid, td_valid, tol, out)
         return out
 
     def _jacobian_rows(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         uv, dp, dk = self._jacobian_buffers(pts.shape[0])
-        _kk.project_jacobian(pts, self._intr(), self._coeffs(), self.valid_theta, uv, dp, dk)
+        kannala_brandt_kernels.project_jacobian(pts, self._intr(), self._coeffs(), self.valid_theta, uv, dp, dk)
         return uv, dp, dk
 
 

@@ -7,8 +7,8 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from camkit._kernels import maps as _km
-from camkit._kernels import transform as _kt
+from camkit._kernels import maps as maps_kernels
+from camkit._kernels import transform as transform_kernels
 from camkit._validate import as_finite_float, as_positive_float, as_positive_int, as_real_array
 from camkit.errors import ParameterError
 from camkit.lens.base import CameraModel, register_model
@@ -79,7 +79,7 @@ class Pinhole(CameraModel):
         return cls(fx=1000.0, fy=1000.5, cx=641.3, cy=478.2, width=1280, height=960)
 
     def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
-        _km.pinhole_to_pinhole(np.ascontiguousarray(M, dtype=np.float64), self._intr(), out)
+        maps_kernels.pinhole_to_pinhole(np.ascontiguousarray(M, dtype=np.float64), self._intr(), out)
         return True
 
     @classmethod
@@ -140,12 +140,12 @@ class Pinhole(CameraModel):
 
     def _project_rows(self, pts: np.ndarray) -> np.ndarray:
         out = np.empty((pts.shape[0], 2))
-        _kt.pinhole_project(pts, self.fx, self.fy, self.cx, self.cy, self.skew, out)
+        transform_kernels.pinhole_project(pts, self.fx, self.fy, self.cx, self.cy, self.skew, out)
         return out
 
     def _unproject_rows(self, px: np.ndarray) -> np.ndarray:
         out = np.empty((px.shape[0], 3))
-        _kt.pinhole_unproject(px, self.fx, self.fy, self.cx, self.cy, self.skew, out)
+        transform_kernels.pinhole_unproject(px, self.fx, self.fy, self.cx, self.cy, self.skew, out)
         return out
 
     def _jacobian_rows(self, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from camkit._kernels import render as _kr
+from camkit._kernels import render as render_kernels
 from camkit._validate import as_matrix, as_positive_float, as_positive_int, check_choice
 from camkit.errors import ParameterError
 from camkit.geometry.pose import Pose
@@ -166,7 +166,7 @@ def render_view(camera: CameraModel, cam_from_target: Pose, board: Target,
     if fx.defocus is not None:
         radius = np.ascontiguousarray(fx.defocus.blur_diameter_px(truth.depth) / 2.0)
         out = np.empty_like(img3)
-        _kr.disc_blur(img3, radius, out)
+        render_kernels.disc_blur(img3, radius, out)
         img3 = out
     if fx.rgb:
         img3 = np.repeat(img3, 3, axis=2)

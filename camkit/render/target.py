@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from camkit._kernels import render as _kr
+from camkit._kernels import render as render_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_int
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.pose import Pose
@@ -91,9 +91,9 @@ def _plane_uv(camera: CameraModel, cam_from_target: Pose,
     W, H = camera.width, camera.height
     rays = camera_rays(camera) if rays is None else rays
     uv = np.empty((H, W, 2))
-    _kr.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
+    render_kernels.plane_coords(rays, cam_from_target.R, cam_from_target.t, uv)
     depth = np.empty((H, W))
-    _kr.plane_depth(rays, cam_from_target.R, cam_from_target.t, depth)
+    render_kernels.plane_depth(rays, cam_from_target.R, cam_from_target.t, depth)
     return uv, depth
 
 
@@ -122,7 +122,7 @@ def render_texture(camera: CameraModel, cam_from_target: Pose, texture: np.ndarr
     bg = _background(background, H, W, C)
     uv, depth = _plane_uv(camera, cam_from_target)
     out = np.empty((H, W, C))
-    _kr.shade_texture(uv, tex3, float(sz[0]), float(sz[1]), bg, S, out)
+    render_kernels.shade_texture(uv, tex3, float(sz[0]), float(sz[1]), bg, S, out)
     return (out if tex.ndim == 3 else out[:, :, 0]), depth
 
 
@@ -219,7 +219,7 @@ def _render_board(camera: CameraModel, cam_from_target: Pose, board: Checkerboar
     image = np.empty((H, W))
     if isinstance(board, Checkerboard):
         ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
-        _kr.shade(uv, board.square, ext, levels[0], levels[1], bg, *edge_lattice(S), image)
+        render_kernels.shade(uv, board.square, ext, levels[0], levels[1], bg, *edge_lattice(S), image)
     else:
         _shade_sheet(board, uv, levels[0], levels[1], bg, min(S, 8), image)
     corners = camera.project(cam_from_target.apply(board.object_points()))
@@ -242,5 +242,6 @@ def _shade_sheet(target: Target, uv: np.ndarray, black: float, white: float, bg:
     size_u, size_v = tex.shape[1] / density, tex.shape[0] / density
     shifted = np.ascontiguousarray(uv - [u0, v0])
     res = np.empty(out.shape + (1,))
-    _kr.shade_texture(shifted, np.ascontiguousarray(tex), size_u, size_v, np.ascontiguousarray(bg[:, :, None]), S, res)
+    render_kernels.shade_texture(shifted, np.ascontiguousarray(tex), size_u, size_v,
+                                 np.ascontiguousarray(bg[:, :, None]), S, res)
     out[:] = res[:, :, 0]

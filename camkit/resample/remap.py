@@ -7,7 +7,7 @@ from typing import Any
 import numpy as np
 
 from camkit._alloc import new_image
-from camkit._kernels import remap as _kr
+from camkit._kernels import remap as remap_kernels
 from camkit._validate import as_finite_float, as_image, as_real_array, check_choice
 from camkit.errors import ParameterError, ShapeError
 from camkit.resample.kernels import DEFAULT_BICUBIC_A, interpolation_code
@@ -43,10 +43,12 @@ def pick_kernel(family: str, method: int, img3: np.ndarray):
     images below 2 GiB (larger ones take the general kernel), bicubic and Lanczos-3 compiled
     for 3 channels."""
     if method == 1 and img3.dtype == np.uint8 and img3.shape[2] == 3 and img3.size < 2**31:
-        return _kr.BILINEAR_U8C3[family]
+        return remap_kernels.BILINEAR_U8C3[family]
     if method >= 2 and img3.dtype == np.uint8 and img3.shape[2] == 3:
-        return _kr.RGB[family][method]
-    return {"map": _kr.REMAP, "affine": _kr.WARP_AFFINE, "perspective": _kr.WARP_PERSPECTIVE}[family][method]
+        return remap_kernels.RGB[family][method]
+    tables = {"map": remap_kernels.REMAP, "affine": remap_kernels.WARP_AFFINE,
+              "perspective": remap_kernels.WARP_PERSPECTIVE}
+    return tables[family][method]
 
 
 def accumulator_zero(dtype: np.dtype) -> np.floating:

@@ -9,7 +9,7 @@ from typing import Any
 import numba
 import numpy as np
 
-from camkit._kernels import resize as _kz
+from camkit._kernels import resize as resize_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_int, check_choice
 from camkit.resample.kernels import DEFAULT_BICUBIC_A, INTERPOLATIONS, kernel, kernel_support
 
@@ -91,7 +91,7 @@ def _fused_kernel(ky: int, kx: int, c: int, step: int) -> Any:
     """The shrinking kernel for (vertical taps, shared horizontal taps or 0, channels, shrink
     factor); factors above 4 are passed at run time instead of compiled in (a known stride
     lets the output loop vectorise: 2x)."""
-    return _cached(_FUSED, _kz.make_vertical_horizontal, ky, kx, c, step if kx and step <= 4 else 0)
+    return _cached(_FUSED, resize_kernels.make_vertical_horizontal, ky, kx, c, step if kx and step <= 4 else 0)
 
 
 def _padded(starts: np.ndarray, weights: np.ndarray, n_in: int) -> tuple[np.ndarray, np.ndarray] | None:
@@ -143,8 +143,8 @@ def _periodic(starts: np.ndarray, weights: np.ndarray, n_in: int, n_out: int, ma
 def _plan(H: int, W: int, h: int, w: int, interpolation: str, antialias: bool, a: float) -> tuple:
     """The weight tables of a resize (and, when shrinking vertically with a compiled tap
     count, the padded vertical table and the shared horizontal weights), read-only and kept
-    for the last 32 geometries: building them costs ~3 ms for 4000x3000 -> 2000x1500, a
-    quarter of the filtering itself, and a batch of photos shares one geometry."""
+    for the last 32 geometries: building them costs a sizeable fraction of the filtering
+    itself, and a batch of photos shares one geometry."""
     sy, wy = resize_weights(H, h, interpolation, antialias=antialias, bicubic_a=a)
     sx, wx = resize_weights(W, w, interpolation, antialias=antialias, bicubic_a=a)
     if h < H:  # (pw (K,), step, first, c0, c1) for the shrinking kernel, or None
@@ -206,8 +206,8 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
     hi = float(np.iinfo(img.dtype).max) if is_int else 0.0
     zero = np.float64(0.0) if img.dtype == np.float64 else np.float32(0.0)
     # The kernels write their blocks of output rows from first touch (measured faster than
-    # touching the pages in NumPy first: 46 vs 58 ms for 4000x3000 -> 6000x4500 RGB, 10.6 vs
-    # 11.3 ms for 4000x3000 -> 2000x1500; remap's kernels take them in a parallel pass first).
+    # touching the pages in NumPy first, benchmarks/notes.md; remap's kernels take them in a
+    # parallel pass first).
     out = np.empty((h, w, C), img.dtype)
     # The vertical pass runs along whole rows (vectorised); the horizontal pass is the costly
     # one, so it runs on whichever has fewer rows: per output row, straight from the vertical
@@ -217,7 +217,7 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
     if h >= H:
         pw, pfirst, q, c0, m = shared
         p, kx = (pw.shape[0], pw.shape[1]) if m else (0, 0)
-        _cached(_ENLARGE, _kz.make_horizontal_vertical, kx, wy.shape[1], C, p, q if m else 1)(
+        _cached(_ENLARGE, resize_kernels.make_horizontal_vertical, kx, wy.shape[1], C, p, q if m else 1)(
             src, sy, wy, sx, wx, pw, pfirst, c0, m, zero, is_int, hi, out,
             max(1, min(h // 32, 4 * numba.get_num_threads())))
     elif shared is not None:
@@ -225,5 +225,5 @@ def resize(image: np.ndarray, *, width: int, height: int, interpolation: str = "
         kernel = _fused_kernel(wy.shape[1], len(pw) if c0 < c1 else 0, C, step)
         kernel(src, sy, wy, sx, wx, zero, is_int, hi, out, pw, step, first, c0, c1)
     else:  # very long kernels (large shrink factors): the tables, taps unknown to the compiler
-        _kz.vertical_horizontal(src, sy, wy, sx, wx, zero, is_int, hi, out)
+        resize_kernels.vertical_horizontal(src, sy, wy, sx, wx, zero, is_int, hi, out)
     return out if img.ndim == 3 else out[:, :, 0]

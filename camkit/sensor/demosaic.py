@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from camkit._alloc import new_image
-from camkit._kernels import demosaic as _kd
-from camkit._kernels import menon as _km
+from camkit._kernels import demosaic as demosaic_kernels
+from camkit._kernels import menon as menon_kernels
 from camkit._validate import as_image, check_choice
 from camkit.errors import ShapeError
 from camkit.sensor.cfa import pattern_code
@@ -65,17 +65,17 @@ def demosaic(raw: np.ndarray, pattern: str = "RGGB", method: str = "menon") -> n
     src = np.ascontiguousarray(img)
     if method == "bilinear":
         if is_int:
-            _kd.bilinear_int(src, code, out)
+            demosaic_kernels.bilinear_int(src, code, out)
         else:
-            _kd.bilinear(src, code, is_int, hi, out)
+            demosaic_kernels.bilinear(src, code, is_int, hi, out)
         return out
     if method == "malvar":
         if is_int and W >= 4:
-            _kd.malvar_int(src, code, int(hi), out)
+            demosaic_kernels.malvar_int(src, code, int(hi), out)
         else:
-            _kd.malvar(src, code, is_int, hi, out)
+            demosaic_kernels.malvar(src, code, is_int, hi, out)
         return out
     # Menon: one streaming pass over ring buffers; float32 arithmetic, float64 for float64 input.
     consts = np.array([0.5, 0.25, 3.0], dtype=np.float64 if img.dtype == np.float64 else np.float32)
-    _km.menon(src, code, consts, is_int, hi, out)
+    menon_kernels.menon(src, code, consts, is_int, hi, out)
     return out

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from numba import njit
 
-from camkit._kernels.simd import unzip_xy
+from camkit._kernels.simd_gather import unzip_xy
 from camkit.errors import CamkitError, ParameterError, ShapeError
 from camkit.resample import INTERPOLATIONS, kernel, remap, warp_affine, warp_perspective
 

@@ -12,7 +12,7 @@ import pytest
 from numba import njit
 from PIL import Image
 
-from camkit._kernels.simd import HALF_KEYS_256, HAS_AVX2, split_even_odd_c3, vertical_even_odd_c3
+from camkit._kernels.simd_resize import HALF_KEYS_256, HAS_AVX2, split_even_odd_c3, vertical_even_odd_c3
 from camkit.errors import ParameterError
 from camkit.resample import RESIZE_INTERPOLATIONS, resize, resize_weights
 
@@ -267,7 +267,7 @@ def test_mixed_directions_match_the_separable_filter(H, W, h, w):
 _GENERIC = """
 import sys
 import numpy as np
-from camkit._kernels.simd import HAS_AVX2
+from camkit._kernels.simd_resize import HAS_AVX2
 from camkit.resample import resize
 img = (np.random.default_rng(9).random((66, 100, 3)) * 255).round().astype(np.uint8)
 np.save(sys.argv[1], resize(img, width=50, height=33))

@@ -122,14 +122,14 @@ def test_bad_input(call, exc, needle):
 def test_integer_kernels_equal_the_float_formulas(dtype, shape):
     # The integer fast paths (branch-free passes per Bayer phase, weights x 16) must give exactly
     # the float formulas' round-half-up result, borders included.
-    from camkit._kernels import demosaic as kd
+    from camkit._kernels import demosaic as demosaic_kernels
     from camkit.sensor.cfa import pattern_code
 
     rng = np.random.default_rng(shape[0] * 100 + shape[1])
     hi = np.iinfo(dtype).max
     for pattern in ("RGGB", "BGGR", "GRBG", "GBRG"):
         raw = rng.integers(0, hi + 1, shape).astype(dtype)
-        for method, kernel in (("bilinear", kd.bilinear), ("malvar", kd.malvar)):
+        for method, kernel in (("bilinear", demosaic_kernels.bilinear), ("malvar", demosaic_kernels.malvar)):
             ref = np.empty((*shape, 3), dtype)
             kernel(raw, pattern_code(pattern), True, float(hi), ref)
             assert np.array_equal(demosaic(raw, pattern, method=method), ref), (pattern, method)

@@ -201,18 +201,18 @@ def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
     patches (their margins read from the image, edges replicated) equals the whole image
     blurred, cut at the patches; sampling at points equals resample.remap (bilinear and Keys
     bicubic, edges replicated)."""
-    from camkit._kernels import detect as kd
-    from camkit._kernels import lattice as kl
+    from camkit._kernels import detect as detect_kernels
+    from camkit._kernels import lattice as lattice_kernels
     from camkit.resample.remap import remap
 
     rng = np.random.default_rng(3)
     img = rng.uniform(size=(90, 120))
     whole = np.empty_like(img)
-    kd.gaussian_blur(img, 2.5, whole)
+    detect_kernels.gaussian_blur(img, 2.5, whole)
     origin = np.array([[-5, -4], [40, 30], [100, 70]], dtype=np.int64)  # two run past the edges
     tile = np.array([[0, 0], [25, 0], [50, 0]], dtype=np.int64)
     mosaic = np.zeros((25, 75))
-    kd.blur_patches(img, origin, tile, 25, 2.5, mosaic)
+    detect_kernels.blur_patches(img, origin, tile, 25, 2.5, mosaic)
     for (x0, y0), (tx, _) in zip(origin, tile, strict=True):
         ys, xs = np.clip(np.arange(y0, y0 + 25), 0, 89), np.clip(np.arange(x0, x0 + 25), 0, 119)
         inside = (np.arange(y0, y0 + 25) == ys)[:, None] & (np.arange(x0, x0 + 25) == xs)[None, :]
@@ -221,6 +221,6 @@ def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
     xy[:, 1] *= 90 / 125
     for cubic, name in ((False, "bilinear"), (True, "bicubic")):
         out = np.empty(500)
-        kl.sample_points(img, np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), cubic, out)
+        lattice_kernels.sample_points(img, np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), cubic, out)
         ref = remap(img, xy[None], interpolation=name, border="replicate")[0]
         np.testing.assert_allclose(out, ref, atol=1e-9)
