@@ -8,47 +8,55 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def normal_blocks(Jg: np.ndarray, Jl: np.ndarray, r: np.ndarray, w: np.ndarray, group: np.ndarray,
-                  n_groups: int):  # pragma: no cover - numba
-    """Weighted normal-equation blocks of ``min sum_n w_n |r_n|^2`` over a global block g
-    (shared by every observation) and local blocks l (observation n depends on block
-    ``group[n]`` only), in one pass.
+def make_normal_blocks(L: int):
+    """The kernel ``normal_blocks(Jg, Jl, r, w, group, n_groups)`` for local blocks of size
+    ``L`` (a compile-time constant: the local loops unroll, as the pose blocks' 6 did when the
+    kernel was written for poses alone).
 
-    ``Jg`` (N, K, G) d residual / d global, ``Jl`` (N, K, L) d residual / d its local block,
-    ``r`` (N, K), ``w`` (N,). Returns U (G, G), W (B, G, L), V (B, L, L), gg (G,), gl (B, L)."""
-    N, K, G = Jg.shape
-    L = Jl.shape[2]
-    U = np.zeros((G, G))
-    W = np.zeros((n_groups, G, L))
-    V = np.zeros((n_groups, L, L))
-    gg = np.zeros(G)
-    gl = np.zeros((n_groups, L))
-    for n in range(N):
-        v = group[n]
-        wn = w[n]
-        for a in range(K):
-            ra = r[n, a] * wn
-            for i in range(G):
-                ji = Jg[n, a, i] * wn
-                gg[i] += Jg[n, a, i] * ra
-                for j in range(i, G):
-                    U[i, j] += ji * Jg[n, a, j]
+    Weighted normal-equation blocks of ``min sum_n w_n |r_n|^2`` over a global block g (shared
+    by every observation) and local blocks l (observation n depends on block ``group[n]``
+    only), in one pass. ``Jg`` (N, K, G) d residual / d global, ``Jl`` (N, K, L) d residual /
+    d its local block, ``r`` (N, K), ``w`` (N,). Returns U (G, G), W (B, G, L), V (B, L, L),
+    gg (G,), gl (B, L)."""
+
+    @njit(cache=True, nogil=True, error_model="numpy")
+    def normal_blocks(Jg, Jl, r, w, group, n_groups):  # pragma: no cover - numba
+        N, K, G = Jg.shape
+        U = np.zeros((G, G))
+        W = np.zeros((n_groups, G, L))
+        V = np.zeros((n_groups, L, L))
+        gg = np.zeros(G)
+        gl = np.zeros((n_groups, L))
+        jl = np.empty(L)
+        for n in range(N):
+            v = group[n]
+            wn = w[n]
+            for a in range(K):
                 for k in range(L):
-                    W[v, i, k] += ji * Jl[n, a, k]
+                    jl[k] = Jl[n, a, k]
+                ra = r[n, a] * wn
+                for i in range(G):
+                    ji = Jg[n, a, i] * wn
+                    gg[i] += Jg[n, a, i] * ra
+                    for j in range(i, G):
+                        U[i, j] += ji * Jg[n, a, j]
+                    for k in range(L):
+                        W[v, i, k] += ji * jl[k]
+                for k in range(L):
+                    gl[v, k] += jl[k] * ra
+                    jk = jl[k] * wn
+                    for l in range(k, L):
+                        V[v, k, l] += jk * jl[l]
+        for i in range(G):
+            for j in range(i):
+                U[i, j] = U[j, i]
+        for v in range(n_groups):
             for k in range(L):
-                gl[v, k] += Jl[n, a, k] * ra
-                jk = Jl[n, a, k] * wn
-                for l in range(k, L):
-                    V[v, k, l] += jk * Jl[n, a, l]
-    for i in range(G):
-        for j in range(i):
-            U[i, j] = U[j, i]
-    for v in range(n_groups):
-        for k in range(L):
-            for l in range(k):
-                V[v, k, l] = V[v, l, k]
-    return U, W, V, gg, gl
+                for l in range(k):
+                    V[v, k, l] = V[v, l, k]
+        return U, W, V, gg, gl
+
+    return normal_blocks
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -133,3 +141,20 @@ def rotate_views(Rs: np.ndarray, ts: np.ndarray, obj: np.ndarray, view: np.ndarr
             RX[n, i] = a
             Xc[n, i] = a + ts[v, i]
     return RX, Xc
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pose_jacobian(dp: np.ndarray, RX: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out`` (N, 2, 6) = ``[dp @ -[RX]x, dp]``: d pixel / d (w, dt) for ``R <- exp([w]x) R,
+    t <- t + dt``, from ``dp`` (N, 2, 3) d pixel / d camera point and ``RX`` (N, 3) the rotated
+    point (``dp @ -[X]x`` is ``X x dp`` row by row)."""
+    for n in range(dp.shape[0]):
+        x0, x1, x2 = RX[n, 0], RX[n, 1], RX[n, 2]
+        for a in range(2):
+            d0, d1, d2 = dp[n, a, 0], dp[n, a, 1], dp[n, a, 2]
+            out[n, a, 0] = x1 * d2 - x2 * d1
+            out[n, a, 1] = x2 * d0 - x0 * d2
+            out[n, a, 2] = x0 * d1 - x1 * d0
+            out[n, a, 3] = d0
+            out[n, a, 4] = d1
+            out[n, a, 5] = d2

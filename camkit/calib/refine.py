@@ -144,8 +144,14 @@ def robust_weights(r: np.ndarray, loss: str | None, scale: float) -> np.ndarray:
     raise ParameterError(f"robust_loss: expected None, 'huber' or 'cauchy', got {loss!r}")
 
 
+_KERNELS: dict[int, Any] = {}
+
+
 def _blocks(lin: Linearization, w: np.ndarray, n_groups: int):
-    return calib_kernels.normal_blocks(np.ascontiguousarray(lin.J_global, dtype=np.float64),
+    L = lin.J_local.shape[2]
+    if L not in _KERNELS:  # one compiled kernel per local block size (numba caches it on disk)
+        _KERNELS[L] = calib_kernels.make_normal_blocks(L)
+    return _KERNELS[L](np.ascontiguousarray(lin.J_global, dtype=np.float64),
                                        np.ascontiguousarray(lin.J_local, dtype=np.float64),
                                        np.ascontiguousarray(lin.residuals, dtype=np.float64),
                                        np.ascontiguousarray(w, dtype=np.float64),

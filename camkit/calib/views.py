@@ -37,9 +37,11 @@ class ViewsState:
 
 def pose_jacobian(dp: np.ndarray, RX: np.ndarray) -> np.ndarray:
     """d pixel / d (w, dt), (N, 2, 6), for ``R <- exp([w]x) R, t <- t + dt``: ``[dp @ -[RX]x, dp]``
-    from ``dp`` (N, 2, 3), d pixel / d camera point, and ``RX`` (N, 3), the rotated point
-    (``dp @ -[X]x`` is ``X x dp`` row by row)."""
-    return np.concatenate([np.cross(RX[:, None, :], dp), dp], axis=2)
+    from ``dp`` (N, 2, 3), d pixel / d camera point, and ``RX`` (N, 3), the rotated point."""
+    out = np.empty((dp.shape[0], 2, 6))
+    calib_kernels.pose_jacobian(np.ascontiguousarray(dp, dtype=np.float64),
+                                np.ascontiguousarray(RX, dtype=np.float64), out)
+    return out
 
 
 class ViewsProblem:

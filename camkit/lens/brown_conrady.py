@@ -3,7 +3,7 @@ thin-prism terms."""
 
 from __future__ import annotations
 
-import dataclasses
+import copy
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -129,8 +129,9 @@ class BrownConrady(CameraModel):
         coeffs = self._coeffs()
         if r.size == 0 or not coeffs.any():
             return self
-        out = dataclasses.replace(self)
-        out._cache["r_valid"] = float(brown_conrady_kernels.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))
+        out = copy.copy(self)  # the same validated fields; a cache of its own
+        object.__setattr__(out, "_cache", {"r_valid": float(
+            brown_conrady_kernels.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))})
         return out
 
     def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:

@@ -1,7 +1,9 @@
 """The contract every registered camera model keeps (ARCHITECTURE.md section 3).
 
-Each model in camkit.lens.MODELS has a typical instance below; a model registered without one
-fails test_every_model_has_an_example, so the contract cannot be skipped by omission.
+Each model in camkit.lens.MODELS is held to it twice: with its own ``example()`` (what the CLI
+and the demo use) and with a richer instance below that sets every parameter; a model
+registered without one fails test_every_model_has_an_example, so the contract cannot be
+skipped by omission.
 """
 
 from __future__ import annotations
@@ -31,9 +33,10 @@ def test_every_model_has_an_example():
     assert set(EXAMPLES) == set(MODELS)
 
 
-@pytest.fixture(params=NAMES)
+@pytest.fixture(params=[(n, kind) for n in NAMES for kind in ("rich", "example")], ids=lambda p: f"{p[0]}-{p[1]}")
 def model(request):
-    return EXAMPLES[request.param]
+    name, kind = request.param
+    return EXAMPLES[name] if kind == "rich" else get_model(name).example()
 
 
 def _pixel_grid(m, n=41):
