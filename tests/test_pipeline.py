@@ -1,0 +1,104 @@
+"""The pipeline, the only place where paths become arrays: each image decoded once (the report
+gets the thumbnails kept while detecting), outputs checked before work, the undistortion of
+files; and the report leaves the caller's matplotlib alone."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+import camkit.io.images
+from camkit.errors import CamkitError
+from camkit.io import write_png
+from camkit.lens import BrownConrady
+from camkit.pipeline import THUMBNAIL_WIDTH, calibrate_files, undistort_files
+from camkit.render import plan_views, render_checkerboard
+from camkit.target import Checkerboard
+
+BOARD = Checkerboard(7, 5, 0.03)
+CAM = BrownConrady(fx=420.0, fy=420.0, cx=319.5, cy=239.5, k1=-0.15, k2=0.03, width=640, height=480)
+
+
+@pytest.fixture(scope="module")
+def photos(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("photos")
+    paths = []
+    for k, pose in enumerate(plan_views(CAM, BOARD, 6, np.random.default_rng(7))):
+        img, _ = render_checkerboard(CAM, pose, BOARD)
+        paths.append(write_png(folder / f"v{k}.png", np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)))
+    return paths
+
+
+def test_each_image_is_decoded_once_and_the_report_gets_thumbnails(photos, tmp_path, monkeypatch):
+    calls = []
+    real = camkit.io.images.read_image
+
+    def counting(path, *args, **kwargs):
+        calls.append(path)
+        return real(path, *args, **kwargs)
+
+    monkeypatch.setattr(camkit.io.images, "read_image", counting)
+    seen = {}
+    import camkit.report.html as html
+
+    real_thumb = html._thumb
+
+    def spy(img, width, full_width):
+        seen.setdefault("widths", []).append(img.shape[1])
+        return real_thumb(img, width, full_width)
+
+    monkeypatch.setattr(html, "_thumb", spy)
+    job = calibrate_files(photos, BOARD, report_file=tmp_path / "r.html", results_file=tmp_path / "r.json")
+    assert sorted(map(str, calls)) == sorted(map(str, photos))  # once each, report included
+    assert seen["widths"] == [THUMBNAIL_WIDTH] * len(photos)  # the report drew the kept thumbnails
+    assert job.result.rms_px < 0.1 and len(job.result.detections) == len(photos)
+    assert (tmp_path / "r.html").stat().st_size > 10_000
+
+
+def test_images_of_another_size_are_refused_with_their_name(photos, tmp_path):
+    odd = write_png(tmp_path / "odd.png", np.zeros((100, 120), np.uint8))
+    with pytest.raises(CamkitError, match=r"images\[3\]: expected the size of the first image.*odd.png"):
+        calibrate_files([*photos[:3], odd], BOARD)
+
+
+def test_undistort_files_checks_everything_before_the_first_write(photos, tmp_path):
+    out = tmp_path / "out"
+    job = undistort_files(photos[:2], CAM, out)
+    assert [p.name for p in job.written] == ["v0.png", "v1.png"] and job.new_model.is_pinhole
+    assert all(p.is_file() for p in job.written)
+    # Two inputs with one stem: refused before anything is written (the folder is not made).
+    twin = tmp_path / "twin" / "v0.png"
+    twin.parent.mkdir()
+    twin.write_bytes(photos[0].read_bytes())
+    with pytest.raises(CamkitError, match="two inputs have the same name"):
+        undistort_files([photos[0], twin], CAM, tmp_path / "never")
+    assert not (tmp_path / "never").exists()
+    with pytest.raises(CamkitError, match=r"out_dir: .* is one of the input images"):
+        undistort_files([photos[0]], CAM, photos[0].parent)
+
+
+def test_the_report_leaves_the_callers_matplotlib_backend_alone(tmp_path):
+    """The report draws on its own Figures: a process that chose a backend keeps it, and
+    pyplot (global state) is never imported."""
+    code = textwrap.dedent(f"""
+        import sys
+        import matplotlib
+        matplotlib.use("svg")
+        import numpy as np
+        from camkit.calib import calibrate
+        from camkit.render import default_camera, plan_views
+        from camkit.report import write_report
+        from camkit.target import Checkerboard
+        board, cam = Checkerboard(9, 6, 0.03), default_camera("brown-conrady")
+        obj = board.object_points()
+        poses = plan_views(cam, board, 5, np.random.default_rng(3))
+        res = calibrate([obj] * 5, [cam.project(p.apply(obj)) for p in poses], width=cam.width, height=cam.height)
+        write_report({str(tmp_path / 'r.html')!r}, res)
+        print(matplotlib.get_backend(), "matplotlib.pyplot" in sys.modules)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
+    assert out == ["svg", "False"]
