@@ -17,7 +17,7 @@ from camkit._validate import as_positive_float, as_positive_int, check_choice
 from camkit.calib.refine import LMOptions, solve
 from camkit.calib.result import CalibrationResult, assemble_result
 from camkit.calib.start import closed_form_start, linear_distortion_start
-from camkit.calib.views import ViewsProblem, as_views
+from camkit.calib.views import ViewsProblem, as_views, reject_outliers
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.lens.base import get_model
 from camkit.target import Detection, Target
@@ -149,18 +149,7 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
         cam, poses = problem.model(report.state), report.state.poses()
         if final:
             break
-        # The solver's residuals at its solution, stacked view by view over the corners in use.
-        res = np.hypot(report.residuals[:, 0], report.residuals[:, 1])
-        sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
-        limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
-        start = 0
-        for k, i in enumerate(views):
-            used = np.flatnonzero(mask[k])
-            r = res[start:start + len(used)]
-            start += len(used)
-            for j, rj in zip(used[r > limit], r[r > limit], strict=True):
-                rejected.append((i, int(j), f"residual {rj:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
-            mask[k][used[r > limit]] = False
+        rejected += reject_outliers(report.residuals, mask, views, reject_sigma)
     all_poses: list = [None] * len(objs)
     for k, i in enumerate(views):
         all_poses[i] = poses[k]

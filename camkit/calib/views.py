@@ -101,3 +101,24 @@ def as_views(object_points: Any, image_points: Any) -> tuple[list[np.ndarray], l
         objs.append(o)
         imgs.append(p)
     return objs, imgs
+
+
+def reject_outliers(residuals: np.ndarray, mask: list[np.ndarray], views: list[int],
+                    reject_sigma: float) -> list[tuple[int, int, str]]:
+    """Points whose residual norm exceeds ``reject_sigma`` robust standard deviations (the MAD
+    of the 2-D residual norms, per axis), taken out of ``mask`` (changed in place) and listed as
+    ``(view, index, reason)``. ``residuals`` (N, 2) are the solver's, stacked view by view over
+    the points in use; ``views[k]`` is the input index of the k-th view."""
+    res = np.hypot(residuals[:, 0], residuals[:, 1])
+    sigma = 1.4826 * np.median(res) / 0.8326  # MAD of the 2-D residual norm -> per-axis sigma
+    limit = reject_sigma * max(sigma, 1e-6) * np.sqrt(2)
+    rejected: list[tuple[int, int, str]] = []
+    start = 0
+    for k, i in enumerate(views):
+        used = np.flatnonzero(mask[k])
+        r = res[start:start + len(used)]
+        start += len(used)
+        for j, rj in zip(used[r > limit], r[r > limit], strict=True):
+            rejected.append((i, int(j), f"residual {rj:.2f} px > {reject_sigma:g} robust sigma ({limit:.2f} px)"))
+        mask[k][used[r > limit]] = False
+    return rejected
