@@ -194,3 +194,16 @@ def as_image(img: Any, name: str, *, max_channels: int = 4) -> np.ndarray:
     if img.shape[0] < 1 or img.shape[1] < 1:
         raise ShapeError(f"{name}: expected a non-empty image, got shape {img.shape}")
     return img
+
+
+def check_same_size(first: tuple[int, ...] | None, img: np.ndarray, name: str, note: str = "") -> tuple[int, ...]:
+    """The (H, W) of a series of images: ``img``'s where ``first`` is None, else ``first``
+    after checking ``img`` has it (a ShapeError naming ``name``, and ``note`` such as the file
+    name, otherwise: one calibration is for one camera mode)."""
+    size = tuple(img.shape[:2])
+    if first is None:
+        return size
+    if size != tuple(first):
+        raise ShapeError(f"{name}: expected the size of the first image, {first[1]}x{first[0]}, got "
+                         f"{size[1]}x{size[0]}{note}; one calibration is for one camera mode")
+    return tuple(first)

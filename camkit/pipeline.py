@@ -9,8 +9,9 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from camkit._validate import check_same_size
 from camkit.calib.calibrate import CalibrationResult, calibrate_detections
-from camkit.errors import ImageFileError, ParameterError, ShapeError
+from camkit.errors import ImageFileError, ParameterError
 from camkit.lens.base import CameraModel
 from camkit.target import Target
 
@@ -163,11 +164,7 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     detections, thumbs, size = [], [], None
     for k, f in enumerate(files):
         img = read_image(f)
-        if size is None:
-            size = img.shape[:2]
-        elif img.shape[:2] != size:
-            raise ShapeError(f"images[{k}]: expected the size of the first image, {size[1]}x{size[0]}, got "
-                             f"{img.shape[1]}x{img.shape[0]} ({f.name}); one calibration is for one camera mode")
+        size = check_same_size(size, img, f"images[{k}]", f" ({f.name})")
         detections.append(board.detect(img))
         if "report_file" in outs:
             w = min(THUMBNAIL_WIDTH, img.shape[1])

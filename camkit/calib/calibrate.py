@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from camkit._validate import as_positive_float, as_positive_int, check_choice
+from camkit._validate import as_positive_float, as_positive_int, check_choice, check_same_size
 from camkit.calib.refine import LMOptions, solve
 from camkit.calib.result import CalibrationResult, assemble_result
 from camkit.calib.start import closed_form_start, linear_distortion_start
@@ -201,11 +201,7 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
         if not isinstance(img, np.ndarray):
             raise ShapeError(f"images[{k}]: expected an image array, got {type(img).__name__} (files: "
                              "camkit.pipeline.calibrate_files, or camkit.io.read_image first)")
-        if size is None:
-            size = img.shape[:2]
-        elif img.shape[:2] != size:
-            raise ShapeError(f"images[{k}]: expected the size of the first image, {size[1]}x{size[0]}, "
-                             f"got {img.shape[1]}x{img.shape[0]}; one calibration is for one camera mode")
+        size = check_same_size(size, img, f"images[{k}]")
         detections.append(target.detect(img))
         if progress is not None:
             progress(k + 1, len(images))

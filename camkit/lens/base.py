@@ -21,6 +21,7 @@ from typing import Any, ClassVar, NamedTuple, Self, TypeVar
 
 import numpy as np
 
+from camkit._registry import Registry
 from camkit._validate import (
     as_finite_float,
     as_points,
@@ -39,28 +40,19 @@ __all__ = [
     "register_model",
 ]
 
-MODELS: dict[str, type[CameraModel]] = {}
+MODELS: Registry = Registry("model")  # name -> CameraModel subclass
 
 _M = TypeVar("_M", bound="type[CameraModel]")
 
 
 def register_model(cls: _M) -> _M:
     """Class decorator: add a model to :data:`MODELS` under its ``name``."""
-    old = MODELS.get(cls.name)
-    if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
-        raise ParameterError(f"model name {cls.name!r} is already registered by {old.__qualname__}")
-    MODELS[cls.name] = cls
-    return cls
+    return MODELS.register(cls)
 
 
 def get_model(name: str) -> type[CameraModel]:
     """The model class registered as ``name`` (for example ``"brown-conrady"``)."""
-    try:
-        return MODELS[name]
-    except (KeyError, TypeError):
-        raise ParameterError(
-            f"name: expected one of {', '.join(map(repr, sorted(MODELS)))}, got {name!r}"
-        ) from None
+    return MODELS.lookup(name)
 
 
 def model_from_params(name: str, params: Any, *, width: int, height: int) -> CameraModel:

@@ -22,7 +22,7 @@ from typing import Any, ClassVar, Self, TypeVar
 
 import numpy as np
 
-from camkit.errors import ParameterError
+from camkit._registry import Registry
 
 __all__ = ["TARGETS", "Detection", "Sheet", "Target", "get_target", "register_target"]
 
@@ -157,25 +157,16 @@ class Target(abc.ABC):
         """A typical instance: what the command line, the demo and the contract test use."""
 
 
-TARGETS: dict[str, type[Target]] = {}
+TARGETS: Registry = Registry("target")  # name -> Target subclass
 
 _T = TypeVar("_T", bound="type[Target]")
 
 
 def register_target(cls: _T) -> _T:
     """Class decorator: add a target to :data:`TARGETS` under its ``name``."""
-    old = TARGETS.get(cls.name)
-    if old is not None and (old.__module__, old.__qualname__) != (cls.__module__, cls.__qualname__):
-        raise ParameterError(f"target name {cls.name!r} is already registered by {old.__qualname__}")
-    TARGETS[cls.name] = cls
-    return cls
+    return TARGETS.register(cls)
 
 
 def get_target(name: Any) -> type[Target]:
     """The target class registered as ``name`` (for example ``"checkerboard"``)."""
-    try:
-        return TARGETS[name]
-    except (KeyError, TypeError):
-        raise ParameterError(
-            f"name: expected one of {', '.join(map(repr, sorted(TARGETS)))}, got {name!r}"
-        ) from None
+    return TARGETS.lookup(name)
