@@ -18,7 +18,7 @@ from camkit._validate import as_finite_float, as_image, as_positive_int
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
-from camkit.target import Checkerboard, Target
+from camkit.target import Checkerboard, Sheet, Target
 
 __all__ = ["RenderTruth", "render_checkerboard", "render_target", "render_texture"]
 
@@ -168,8 +168,8 @@ def render_target(camera: CameraModel, cam_from_target: Pose, target: Target, *,
     """The image (reflectance, float64 in [0, 1]) a camera forms of any target, and the truth.
 
     A :class:`~camkit.target.Checkerboard` goes through :func:`render_checkerboard`; any other
-    target's sheet is rasterised at 64 pixels across its smallest mark and averaged over each
-    pixel's footprint (``min(supersample, 8)^2`` samples). Parameters as
+    target's sheet is rasterised with every edge on a texel boundary (:func:`_sheet_density`)
+    and averaged over each pixel's footprint (``supersample^2`` samples). Parameters as
     :func:`render_checkerboard`; ``truth.corners_px`` holds every point of
     ``target.object_points()``.
     """
@@ -221,23 +221,40 @@ def _render_board(camera: CameraModel, cam_from_target: Pose, board: Checkerboar
         ext = np.array([*board.extent(), board.inner_cols, board.inner_rows], dtype=np.float64)
         render_kernels.shade(uv, board.square, ext, levels[0], levels[1], bg, *edge_lattice(S), image)
     else:
-        _shade_sheet(board, uv, levels[0], levels[1], bg, min(S, 8), image)
+        _shade_sheet(board, uv, levels[0], levels[1], bg, S, image)
     corners = camera.project(cam_from_target.apply(board.object_points()))
     visible = (np.isfinite(corners).all(axis=-1) & (corners[:, 0] >= 0) & (corners[:, 0] <= W - 1)
                & (corners[:, 1] >= 0) & (corners[:, 1] <= H - 1))
     return image, RenderTruth(corners, visible, cam_from_target, camera, board, depth)
 
 
-def _shade_sheet(target: Target, uv: np.ndarray, black: float, white: float, bg: np.ndarray, S: int,
-                 out: np.ndarray) -> None:
-    """Shade ``out`` (H, W) from the target's sheet, rasterised at 64 pixels across its smallest
-    mark (at most 4096 pixels a side), seen at the plane coordinates ``uv``."""
-    sheet = target.sheet()
+def _sheet_density(sheet: Sheet) -> float:
+    """Texels per metre for rasterising ``sheet``: every mark's edge on a texel boundary (a
+    whole number of texels per ``q``, the largest length dividing every edge's offset from
+    the sheet's corner, to 0.1 um), as fine as 4096 texels a side allow. An edge between texels
+    would otherwise be carried only by its texels' coverage (:meth:`Sheet.coverage`), which
+    bilinear sampling reproduces less exactly; where no such density fits in 4096 texels, 64
+    texels across the smallest mark."""
     u0, v0, u1, v1 = sheet.extent
     b = sheet.black
+    limit = 4096.0 / max(u1 - u0, v1 - v0)
+    offsets = np.concatenate([(b[:, [0, 2]] - u0).ravel(), (b[:, [1, 3]] - v0).ravel(), [u1 - u0, v1 - v0]])
+    units = np.rint(offsets * 1e7).astype(np.int64)  # 0.1 um
+    q = float(np.gcd.reduce(units[units > 0])) * 1e-7 if (units > 0).any() else 0.0
+    if q > 0 and np.allclose(units * 1e-7, offsets, rtol=0, atol=1e-9) and q * limit >= 1.0:
+        return math.floor(q * limit) / q
     mark = float(np.min(np.minimum(b[:, 2] - b[:, 0], b[:, 3] - b[:, 1]))) if len(b) else u1 - u0
-    density = min(64.0 / mark, 4096.0 / max(u1 - u0, v1 - v0))
-    tex = np.where(sheet.raster(density) == 0, black, white)[:, :, None]
+    return min(64.0 / mark, limit)
+
+
+def _shade_sheet(target: Target, uv: np.ndarray, black: float, white: float, bg: np.ndarray, S: int,
+                 out: np.ndarray) -> None:
+    """Shade ``out`` (H, W) from the target's sheet, rasterised at :func:`_sheet_density`, seen
+    at the plane coordinates ``uv``."""
+    sheet = target.sheet()
+    u0, v0, _, _ = sheet.extent
+    density = _sheet_density(sheet)
+    tex = (white - (white - black) * sheet.coverage(density))[:, :, None]
     # The raster's size is rounded to whole pixels: the texture spans exactly that many.
     size_u, size_v = tex.shape[1] / density, tex.shape[0] / density
     shifted = np.ascontiguousarray(uv - [u0, v0])

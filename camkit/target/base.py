@@ -113,6 +113,28 @@ class Sheet:
             img[b:d, a:c] = 0
         return img
 
+    def coverage(self, px_per_m: float) -> np.ndarray:
+        """The fraction of each texel the marks cover, float64 in [0, 1], on the grid of
+        :meth:`raster`: exact box-filtered area, so an edge between texel boundaries keeps its
+        position (a texture that rounds it to a boundary moves corners by up to half a
+        texel)."""
+        u0, v0, u1, v1 = self.extent
+        W = max(1, round((u1 - u0) * px_per_m))
+        H = max(1, round((v1 - v0) * px_per_m))
+        out = np.zeros((H, W))
+        r = (self.black - [u0, v0, u0, v0]) * px_per_m
+        for a, b, c, d in r:  # one block per mark: the outer product of its 1-D edge coverages
+            ja, jc = max(int(np.floor(a)), 0), min(int(np.ceil(c)), W)
+            ib, id_ = max(int(np.floor(b)), 0), min(int(np.ceil(d)), H)
+            if ja >= jc or ib >= id_:
+                continue
+            j = np.arange(ja, jc)
+            i = np.arange(ib, id_)
+            cx = np.clip(np.minimum(c, j + 1) - np.maximum(a, j), 0.0, 1.0)
+            cy = np.clip(np.minimum(d, i + 1) - np.maximum(b, i), 0.0, 1.0)
+            out[ib:id_, ja:jc] += cy[:, None] * cx[None, :]
+        return np.minimum(out, 1.0)
+
 
 class Target(abc.ABC):
     """Base of every calibration target; see the module docstring for the contract.
