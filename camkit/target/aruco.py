@@ -1,0 +1,98 @@
+"""Square fiducial marker dictionaries (ArUco, AprilTag): the codes, and reading a marker's bits.
+
+The codes are data: OpenCV's predefined dictionaries (``cv2.aruco.getPredefinedDictionary``;
+the AprilTag families are AprilRobotics/apriltag's), carried over as
+``camkit/target/data/aruco_dictionaries.json`` by ``scripts/make_aruco_dictionaries.py`` and
+checked code by code against OpenCV in tests/target/test_aruco.py. A marker of an ``n x n``
+dictionary is ``(n + 2) x (n + 2)`` cells: a black border one cell wide around the ``n x n``
+bits, 1 = white, read row by row from the marker's top-left corner.
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+from dataclasses import dataclass
+from importlib import resources
+
+import numpy as np
+
+from camkit.errors import ParameterError
+
+__all__ = ["DICTIONARY_NAMES", "ArucoDictionary", "get_dictionary"]
+
+
+@functools.cache
+def _data() -> dict:
+    return json.loads(resources.files("camkit.target").joinpath("data/aruco_dictionaries.json").read_text())
+
+
+#: The predefined dictionary names, as OpenCV spells them (``"DICT_5X5_100"``).
+DICTIONARY_NAMES: tuple[str, ...] = tuple(sorted(_data()["dictionaries"]))
+
+
+@dataclass(frozen=True, slots=True, eq=False)
+class ArucoDictionary:
+    """A marker dictionary.
+
+    Attributes
+    ----------
+    name : str
+    marker_size : int
+        Bits per side, n.
+    codes : ndarray, (N, n, n) uint8
+        Code ``i``'s bits, 1 = white, row by row from the marker's top-left corner.
+    max_correction_bits : int
+        Bit errors corrected when reading (OpenCV's value for the dictionary).
+    """
+
+    name: str
+    marker_size: int
+    codes: np.ndarray
+    max_correction_bits: int
+
+    def __len__(self) -> int:
+        return len(self.codes)
+
+    def cells(self, marker_id: int) -> np.ndarray:
+        """The marker's ``(n + 2) x (n + 2)`` cells, 1 = white (the border is black)."""
+        n = self.marker_size
+        out = np.zeros((n + 2, n + 2), dtype=np.uint8)
+        out[1:-1, 1:-1] = self.codes[marker_id]
+        return out
+
+    def identify(self, bits: np.ndarray) -> tuple[int, int, int] | None:
+        """``(id, turns, errors)`` of the code nearest to the observed ``n x n`` bits in any of
+        the four quarter turns, or None where more than ``max_correction_bits`` bits differ.
+        ``turns``: the observed bits are the code turned ``turns`` times by ``np.rot90`` (a
+        quarter turn counter-clockwise as the array is printed), so the code's corner ``j``
+        (0 top-left, 1 top-right, 2 bottom-right, 3 bottom-left) is the observed bits' corner
+        ``(j - turns) % 4``."""
+        b = np.asarray(bits, dtype=np.uint8)
+        n = self.marker_size
+        if b.shape != (n, n):
+            raise ParameterError(f"bits: expected shape ({n}, {n}), got {b.shape}")
+        flat = self.codes.reshape(len(self.codes), -1)
+        turned = np.stack([np.rot90(b, -k).ravel() for k in range(4)])  # undo k turns
+        dist = (turned[:, None, :] != flat[None, :, :]).sum(axis=2)  # (4, N)
+        k, i = np.unravel_index(int(np.argmin(dist)), dist.shape)
+        errors = int(dist[k, i])
+        if errors > self.max_correction_bits:
+            return None
+        return int(i), int(k), errors
+
+
+@functools.cache
+def get_dictionary(name: str) -> ArucoDictionary:
+    """The predefined dictionary ``name`` (OpenCV's spelling, e.g. ``"DICT_5X5_100"``,
+    ``"DICT_APRILTAG_36h11"``)."""
+    data = _data()
+    entry = data["dictionaries"].get(name) if isinstance(name, str) else None
+    if entry is None:
+        raise ParameterError(f"dictionary: expected one of {', '.join(DICTIONARY_NAMES)}, got {name!r}")
+    fam = data["families"][entry["family"]]
+    n = fam["marker_size"]
+    codes = np.array([[int(c) for c in format(int(h, 16), f"0{n * n}b")] for h in fam["codes"][:entry["size"]]],
+                     dtype=np.uint8).reshape(-1, n, n)
+    codes.setflags(write=False)
+    return ArucoDictionary(name, n, codes, entry["max_correction_bits"])

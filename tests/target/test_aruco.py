@@ -1,0 +1,46 @@
+"""The marker dictionaries: every code against OpenCV's predefined dictionaries (the oracle the
+data was carried over from), and reading bits in any turn with the dictionary's correction."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from camkit.errors import ParameterError
+from camkit.target import DICTIONARY_NAMES, get_dictionary
+
+
+@pytest.mark.parametrize("name", DICTIONARY_NAMES)
+def test_every_code_is_opencvs(name):
+    ref = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
+    d = get_dictionary(name)
+    assert len(d) == ref.bytesList.shape[0] and d.marker_size == ref.markerSize
+    assert d.max_correction_bits == ref.maxCorrectionBits
+    bits = np.array([cv2.aruco.Dictionary.getBitsFromByteList(ref.bytesList[i:i + 1], ref.markerSize)
+                     for i in range(len(d))])
+    np.testing.assert_array_equal(d.codes, bits)
+    # A marker image from OpenCV, cell by cell: 1 = white, a black border.
+    img = cv2.aruco.generateImageMarker(ref, len(d) - 1, (d.marker_size + 2) * 4)
+    np.testing.assert_array_equal(img[2::4, 2::4] > 127, d.cells(len(d) - 1) == 1)
+
+
+@pytest.mark.parametrize("name", ["DICT_4X4_50", "DICT_5X5_100", "DICT_6X6_250", "DICT_APRILTAG_36h11"])
+def test_identify_in_every_turn_with_correctable_errors(name):
+    d = get_dictionary(name)
+    rng = np.random.default_rng(5)
+    for code in rng.choice(len(d), 10, replace=False):
+        for turns in range(4):
+            seen = np.rot90(d.codes[code], turns).copy()
+            flip = rng.choice(seen.size, d.max_correction_bits, replace=False)
+            seen.flat[flip] ^= 1
+            assert d.identify(seen) == (code, turns, d.max_correction_bits)
+    # Uniform bits are no code of these dictionaries (their minimum distance forbids it).
+    assert d.identify(np.zeros((d.marker_size, d.marker_size), np.uint8)) is None
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ParameterError, match=r"dictionary: expected one of .*DICT_5X5_100.*got .DICT_5X5_101."):
+        get_dictionary("DICT_5X5_101")
+    with pytest.raises(ParameterError, match=r"bits: expected shape \(5, 5\)"):
+        get_dictionary("DICT_5X5_100").identify(np.zeros((4, 4)))
