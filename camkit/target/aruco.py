@@ -72,14 +72,25 @@ class ArucoDictionary:
         n = self.marker_size
         if b.shape != (n, n):
             raise ParameterError(f"bits: expected shape ({n}, {n}), got {b.shape}")
-        flat = self.codes.reshape(len(self.codes), -1)
-        turned = np.stack([np.rot90(b, -k).ravel() for k in range(4)])  # undo k turns
-        dist = (turned[:, None, :] != flat[None, :, :]).sum(axis=2)  # (4, N)
-        k, i = np.unravel_index(int(np.argmin(dist)), dist.shape)
-        errors = int(dist[k, i])
-        if errors > self.max_correction_bits:
-            return None
-        return int(i), int(k), errors
+        ids, turns, errors = self.identify_many(b[None])
+        return None if ids[0] < 0 else (int(ids[0]), int(turns[0]), int(errors[0]))
+
+    def identify_many(self, bits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`identify` for ``(K, n, n)`` observed bits at once: ``(ids, turns, errors)``,
+        each (K,), id -1 where no code is within ``max_correction_bits``."""
+        b = np.asarray(bits, dtype=np.float64)
+        K, n = b.shape[0], self.marker_size
+        turned = np.stack([np.rot90(b, -k, axes=(1, 2)).reshape(K, -1) for k in range(4)], axis=1)  # undo k turns
+        codes = self.codes.reshape(len(self.codes), -1).astype(np.float64)
+        # Hamming distance as products: bits that agree are 1*1 or 0*0.
+        agree = turned @ codes.T + (1.0 - turned) @ (1.0 - codes).T  # (K, 4, N)
+        dist = n * n - agree
+        flat = dist.reshape(K, -1)
+        best = np.argmin(flat, axis=1)
+        errors = flat[np.arange(K), best].astype(np.int64)
+        turns, ids = np.divmod(best, len(self.codes))
+        ids = np.where(errors <= self.max_correction_bits, ids, -1)
+        return ids.astype(np.int64), turns.astype(np.int64), errors
 
 
 @functools.cache

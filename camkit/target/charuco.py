@@ -45,11 +45,12 @@ from typing import Self
 import numpy as np
 
 from camkit._kernels import detect as detect_kernels
+from camkit._kernels import markers as markers_kernels
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
-from camkit.target.checkerboard import _saddle_fit, _sample, _to_grey
+from camkit.target.checkerboard import _half, _saddle_fit, _sample, _to_grey
 
 __all__ = ["Charuco"]
 
@@ -171,42 +172,6 @@ class Charuco(Target):
 # -- detection ---------------------------------------------------------------------------------
 
 
-def _box_mean(g: np.ndarray, r: int) -> np.ndarray:
-    """Mean of g over the (2r+1)^2 window around each pixel (clipped at the borders), from an
-    integral image."""
-    H, W = g.shape
-    ii = np.zeros((H + 1, W + 1))
-    ii[1:, 1:] = g.cumsum(axis=0).cumsum(axis=1)
-    y0 = np.clip(np.arange(H) - r, 0, H)
-    y1 = np.clip(np.arange(H) + r + 1, 0, H)
-    x0 = np.clip(np.arange(W) - r, 0, W)
-    x1 = np.clip(np.arange(W) + r + 1, 0, W)
-    tot = ii[y1][:, x1] - ii[y0][:, x1] - ii[y1][:, x0] + ii[y0][:, x0]
-    return tot / ((y1 - y0)[:, None] * (x1 - x0)[None, :])
-
-
-def _quad(ys: np.ndarray, xs: np.ndarray) -> np.ndarray | None:
-    """Four corners of a region (pixel coordinates), ordered clockwise in the image starting
-    anywhere; None where it is not a quad (a corner missing)."""
-    p = np.stack([xs, ys], axis=-1).astype(np.float64)
-    c = p.mean(axis=0)
-    a = p[np.argmax(((p - c) ** 2).sum(axis=1))]
-    b = p[np.argmax(((p - a) ** 2).sum(axis=1))]
-    d = b - a
-    side = d[0] * (p[:, 1] - a[1]) - d[1] * (p[:, 0] - a[0])
-    if side.max() <= 0 or side.min() >= 0:
-        return None
-    e, f = p[np.argmax(side)], p[np.argmin(side)]
-    q = np.array([a, e, b, f])
-    area = 0.5 * np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1])
-    if area < 0:
-        q = q[::-1]
-    # A quad, not a triangle or a blob: the four corners span most of the region's area.
-    if abs(area) < 0.6 * len(xs):
-        return None
-    return q
-
-
 def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
     """The homography taking 4 points ``src`` (4, 2) to ``dst`` (4, 2) (8 x 8 linear system)."""
     A = np.zeros((8, 8))
@@ -224,28 +189,47 @@ def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
     return np.append(h, 1.0).reshape(3, 3)
 
 
-def _fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
-    """Least-squares homography (normalised DLT) taking ``src`` (K, 2) to ``dst`` (K, 2)."""
+def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
+    (in ``dst``'s units) by which the least-squares homography (normalised DLT) misses a point;
+    inf where none is fitted."""
     def norm(p):
-        c = p.mean(axis=0)
-        d = np.sqrt(((p - c) ** 2).sum(axis=1)).mean()
-        if d < 1e-12:
-            return None
-        k = np.sqrt(2.0) / d
-        return np.array([[k, 0, -k * c[0]], [0, k, -k * c[1]], [0, 0, 1.0]])
+        c = p.mean(axis=1, keepdims=True)
+        d = np.sqrt(((p - c) ** 2).sum(axis=2)).mean(axis=1)
+        k = np.sqrt(2.0) / np.maximum(d, 1e-12)
+        return (p - c) * k[:, None, None], k
 
-    Ts, Td = norm(src), norm(dst)
-    if Ts is None or Td is None:
-        return None
-    a, b = _apply(Ts, src), _apply(Td, dst)
-    K = len(a)
-    A = np.zeros((2 * K, 9))
-    A[0::2, 0:2], A[0::2, 2] = a, 1.0
-    A[0::2, 6:8], A[0::2, 8] = -b[:, :1] * a, -b[:, 0]
-    A[1::2, 3:5], A[1::2, 5] = a, 1.0
-    A[1::2, 6:8], A[1::2, 8] = -b[:, 1:2] * a, -b[:, 1]
-    h = np.linalg.svd(A)[2][-1].reshape(3, 3)
-    return np.linalg.solve(Td, h @ Ts)
+    a, _ = norm(src)
+    b, kb = norm(dst)
+    K, P = a.shape[:2]
+    A = np.zeros((K, 2 * P, 9))
+    A[:, 0::2, 0:2], A[:, 0::2, 2] = a, 1.0
+    A[:, 0::2, 6:8], A[:, 0::2, 8] = -b[:, :, :1] * a, -b[:, :, 0]
+    A[:, 1::2, 3:5], A[:, 1::2, 5] = a, 1.0
+    A[:, 1::2, 6:8], A[:, 1::2, 8] = -b[:, :, 1:2] * a, -b[:, :, 1]
+    h = np.linalg.svd(A)[2][:, -1].reshape(K, 3, 3)
+    q = np.einsum("kij,kpj->kpi", h, np.concatenate([a, np.ones((K, P, 1))], axis=2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        fit = q[:, :, :2] / q[:, :, 2:]
+    miss = np.hypot(*(fit - b).transpose(2, 0, 1)).max(axis=1) / kb
+    return np.where(np.isfinite(miss), miss, np.inf)
+
+
+def _refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The saddle fit (window ``r``) of each point on the image smoothed by ``sigma``, the
+    smoothing computed only on a patch around each point (the patches side by side in one
+    mosaic): enough for the window, its bicubic support and the fit's moves."""
+    half = r + 9
+    side = 2 * half + 1
+    n = len(pts)
+    per_row = max(1, int(np.ceil(np.sqrt(n))))
+    origin = np.floor(pts).astype(np.int64) - half
+    tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
+    mosaic = np.zeros((side * ((n + per_row - 1) // per_row), side * per_row))
+    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, sigma, mosaic)
+    shift = tile - origin
+    q, sg = _saddle_fit(mosaic, pts + shift, r)
+    return q - shift, sg
 
 
 def _apply(H: np.ndarray, p: np.ndarray) -> np.ndarray:
@@ -253,68 +237,122 @@ def _apply(H: np.ndarray, p: np.ndarray) -> np.ndarray:
     return q[:, :2] / q[:, 2:]
 
 
-def _read_marker(g: np.ndarray, quad: np.ndarray, d: ArucoDictionary) -> tuple[int, int] | None:
-    """``(code id, turns)`` of the marker in ``quad`` (clockwise corners), or None."""
+def _read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary) -> tuple[np.ndarray, np.ndarray]:
+    """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
+    where a quad holds no code. All quads at once: their homographies from the unit square,
+    one sampling of every cell's 3 x 3 middle points and of the white margin around each."""
+    K = len(quads)
     n = d.marker_size + 2
-    H = _homography(np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]]), quad)
-    if H is None:
-        return None
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    A = np.zeros((K, 8, 8))
+    A[:, 0::2, 0:2] = unit
+    A[:, 0::2, 2] = 1.0
+    A[:, 0::2, 6:8] = -quads[:, :, :1] * unit
+    A[:, 1::2, 3:5] = unit
+    A[:, 1::2, 5] = 1.0
+    A[:, 1::2, 6:8] = -quads[:, :, 1:2] * unit
+    rhs = quads.reshape(K, 8)
+    ok = np.abs(np.linalg.det(A)) > 1e-12
+    h = np.zeros((K, 8))
+    h[ok] = np.linalg.solve(A[ok], rhs[ok][:, :, None])[:, :, 0]
+    Hs = np.concatenate([h, np.ones((K, 1))], axis=1).reshape(K, 3, 3)
     ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
     cy, cx = np.mgrid[0:n, 0:n]
-    uu = (cx[:, :, None] + ou.ravel()).ravel()
-    vv = (cy[:, :, None] + ov.ravel()).ravel()
-    px = _apply(H, np.stack([uu, vv], axis=-1))
-    vals = _sample(g, px[:, 0], px[:, 1], "bilinear").reshape(n, n, 9).mean(axis=2)
+    cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
     # The white margin around the marker: half a cell outside each side's middle.
     ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
-    white = float(np.median(_sample(g, *_apply(H, ring).T, "bilinear")))
-    border = np.concatenate([vals[0], vals[-1], vals[1:-1, 0], vals[1:-1, -1]])
-    black = float(np.median(border))
-    if not white - black > 0.15:
-        return None
+    pts = np.concatenate([cells, ring])
+    p = np.einsum("kij,pj->kpi", Hs, np.c_[pts, np.ones(len(pts))])
+    px = p[:, :, :2] / p[:, :, 2:]
+    vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
+                   "bilinear").reshape(K, len(pts))
+    cell = vals[:, :n * n * 9].reshape(K, n, n, 9).mean(axis=3)
+    white = np.median(vals[:, n * n * 9:], axis=1)
+    border = np.concatenate([cell[:, 0], cell[:, -1], cell[:, 1:-1, 0], cell[:, 1:-1, -1]], axis=1)
+    black = np.median(border, axis=1)
     t = 0.5 * (white + black)
-    if np.mean(border < t) < 0.85:
-        return None
-    found = d.identify((vals[1:-1, 1:-1] > t).astype(np.uint8))
-    return None if found is None else found[:2]
+    good = ok & np.isfinite(white) & (white - black > 0.15) & (np.mean(border < t[:, None], axis=1) >= 0.85)
+    ids = np.full(K, -1, dtype=np.int64)
+    turns = np.zeros(K, dtype=np.int64)
+    if good.any():
+        bits = (cell[good][:, 1:-1, 1:-1] > t[good][:, None, None]).astype(np.uint8)
+        ids[good], turns[good], _ = d.identify_many(bits)
+    return ids, turns
+
+
+def _quads(g: np.ndarray, min_side: int) -> np.ndarray:
+    """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
+    threshold at three window sizes (a quad found again at another window kept once)."""
+    H, W = g.shape
+    dark = np.empty((H, W), dtype=np.bool_)
+    labels = np.empty((H, W), dtype=np.int64)
+    out: list[np.ndarray] = []
+    ii = np.empty((H + 1, W + 1))
+    markers_kernels.integral(g, ii)
+    for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}):
+        markers_kernels.dark_mask(g, ii, r, 0.03, dark)
+        n = markers_kernels.label4(dark, labels)
+        if n == 0:
+            continue
+        stats = np.empty((n, 5), dtype=np.int64)
+        quads = np.zeros((n, 4, 2))
+        markers_kernels.region_quads(labels, n, (min_side * min_side) // 2, (H * W) // 4, min_side, stats, quads)
+        area = stats[:, 0].astype(np.float64)
+        w = stats[:, 3] - stats[:, 1] + 1
+        h = stats[:, 4] - stats[:, 2] + 1
+        q = quads
+        shoelace = 0.5 * np.sum(q[:, :, 0] * np.roll(q[:, :, 1], -1, axis=1)
+                                - np.roll(q[:, :, 0], -1, axis=1) * q[:, :, 1], axis=1)
+        # A quad, not a triangle or a blob: its four corners span most of the region's area.
+        ok = (area > 0) & (np.maximum(w, h) <= 8 * np.minimum(w, h)) & (np.abs(shoelace) >= 0.6 * area)
+        q = np.where((shoelace > 0)[:, None, None], q, q[:, ::-1])[ok]
+        out.extend(q)
+    if not out:
+        return np.zeros((0, 4, 2))
+    # One quad per marker: the windows find most markers more than once.
+    allq = np.stack(out)
+    centre = allq.mean(axis=1)
+    span = np.ptp(allq, axis=1).max(axis=1)
+    order = np.lexsort((centre[:, 1], centre[:, 0]))
+    keep = np.ones(len(allq), dtype=bool)
+    for i, a in enumerate(order):  # neighbours in x order only: a short scan per quad
+        if not keep[a]:
+            continue
+        for b in order[i + 1:]:
+            if centre[b, 0] - centre[a, 0] > 0.1 * span[a]:
+                break
+            if keep[b] and np.abs(allq[b] - allq[a]).max() < 0.05 * span[a] + 1.0:
+                keep[b] = False
+    return allq[keep]
+
+
+#: Markers are looked for at a level whose longer side is at most this (2x2 means); the corners
+#: are refined on the full image.
+_MARKER_LEVEL_SIDE = 1600
 
 
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
-    g = _to_grey(image)
-    H, W = g.shape
+    full = _to_grey(image)
+    g, factor = full, 1
+    while max(g.shape) > _MARKER_LEVEL_SIDE:
+        g, factor = _half(g), factor * 2
     d = board.aruco
-    from scipy import ndimage
 
-    # 1-2. Marker candidates at three threshold windows; each decoded quad kept once.
+    # 1-2. Markers: quads whose cells read as a code; each code's quads kept once (full-image
+    # pixels).
     found: dict[int, list[np.ndarray]] = {}
-    n_cells = d.marker_size + 2
-    min_side = 2 * n_cells  # two pixels a cell at least
-    for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}):
-        dark = g < _box_mean(g, r) - 0.03
-        labels, n = ndimage.label(dark)
-        if n == 0:
+    quads = _quads(g, 2 * (d.marker_size + 2))  # two pixels a cell at least
+    codes, turns = _read_markers(g, quads, d) if len(quads) else (np.zeros(0, np.int64), np.zeros(0, np.int64))
+    for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
+        if code < 0:
             continue
-        areas = np.bincount(labels.ravel(), minlength=n + 1)[1:]
-        for k, sl in enumerate(ndimage.find_objects(labels)):  # one region at a time (quad fit)
-            if sl is None or not (min_side * min_side * 0.5 <= areas[k] <= 0.25 * H * W):
-                continue
-            h, w = sl[0].stop - sl[0].start, sl[1].stop - sl[1].start
-            if min(h, w) < min_side or max(h, w) > 8 * min(h, w):
-                continue
-            ys, xs = np.nonzero(labels[sl] == k + 1)
-            quad = _quad(ys + sl[0].start, xs + sl[1].start)
-            if quad is None:
-                continue
-            got = _read_marker(g, quad, d)
-            if got is None:
-                continue
-            code, turns = got
-            # The code's corner j is the quad's corner (j - turns) % 4.
-            corners = quad[(np.arange(4) - turns) % 4]
-            same = found.setdefault(code, [])
-            if not any(np.abs(c - corners).max() < 0.2 * np.sqrt(areas[k]) for c in same):
-                same.append(corners)
+        # The code's corner j is the quad's corner (j - turns) % 4.
+        corners = (quad[(np.arange(4) - k) % 4] + 0.5) * factor - 0.5
+        span = float(np.ptp(corners, axis=0).max())
+        same = found.setdefault(int(code), [])
+        if not any(np.abs(c - corners).max() < 0.2 * span for c in same):
+            same.append(corners)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
@@ -324,24 +362,24 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     side_px = {m: np.sqrt(abs(0.5 * np.sum(found[m][0][:, 0] * np.roll(found[m][0][:, 1], -1)
                                          - np.roll(found[m][0][:, 0], -1) * found[m][0][:, 1])))
                * board.square / board.marker for m in ids}
-    confirmed = []
-    for m in ids:
-        agree = disagree = 0
-        for j in ids:
-            if j == m or np.abs(ms[j] - ms[m]).max() > 2:
-                continue
-            # Both markers where the layout puts them: one homography through their eight
-            # corners fits (perspective and distortion are smooth over two squares).
-            src = np.concatenate([obj[m], obj[j]])
-            dst = np.concatenate([found[m][0], found[j][0]])
-            Hmj = _fit_homography(src, dst)
-            worst = np.inf if Hmj is None else float(np.hypot(*(_apply(Hmj, src) - dst).T).max())
-            if worst < max(2.0, 0.08 * min(side_px[m], side_px[j])):
-                agree += 1
-            else:
-                disagree += 1
-        if agree >= 1 and agree > disagree:
-            confirmed.append(m)
+    # Every pair of markers within two squares: one homography through both markers' eight
+    # corners fits where both are where the layout puts them (perspective and distortion are
+    # smooth over two squares).
+    agree = dict.fromkeys(ids, 0)
+    disagree = dict.fromkeys(ids, 0)
+    pairs = [(m, j) for a, m in enumerate(ids) for j in ids[a + 1:] if np.abs(ms[j] - ms[m]).max() <= 2]
+    if pairs:
+        src = np.stack([np.concatenate([obj[m], obj[j]]) for m, j in pairs])
+        dst = np.stack([np.concatenate([found[m][0], found[j][0]]) for m, j in pairs])
+        worst = _homography_misfit(src, dst)
+        for (m, j), w in zip(pairs, worst, strict=True):
+            tol = max(2.0 * factor, 0.08 * min(side_px[m], side_px[j]))
+            for a in (m, j):
+                if w < tol:
+                    agree[a] += 1
+                else:
+                    disagree[a] += 1
+    confirmed = [m for m in ids if agree[m] >= 1 and agree[m] > disagree[m]]
     if not confirmed:
         why = ("no marker of the board" if not ids else
                f"{len(ids)} marker(s) of the board, none confirmed by a neighbour where the layout puts it")
@@ -361,16 +399,15 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
                 size[cid] = max(size[cid], side_px[m])
     cand = np.flatnonzero(pred_n > 0)
     pred = pred_sum[cand] / pred_n[cand, None]
+    H, W = full.shape
     inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
     cand, pred = cand[inside], pred[inside]
-    s = np.empty_like(g)
-    detect_kernels.gaussian_blur(g, 1.5, s)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
-    win = np.clip(np.round(size[cand] / 11.0), 2, 5).astype(int)
-    for r in np.unique(win):  # one fit per window size (at most four)
+    win = np.clip(np.round(size[cand] / 11.0), 2, 5 * factor).astype(int)
+    for r in np.unique(win):  # one fit per window size
         k = win == r
-        q, sg = _saddle_fit(s, pred[k], int(r))
+        q, sg = _refine_patches(full, pred[k], int(r), 1.5 * factor)
         moved = np.hypot(*(q - pred[k]).T)
         ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= 0.2 * size[cand[k]])
         out[cand[k][ok]] = q[ok]
