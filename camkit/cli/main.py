@@ -11,7 +11,7 @@ from typing import ClassVar
 import numpy as np
 
 from camkit import __version__
-from camkit.errors import CamkitError, EstimationError
+from camkit.errors import CamkitError, EstimationError, ParameterError
 
 __all__ = ["main"]
 
@@ -145,16 +145,14 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from camkit.calib import held_parameters
     from camkit.io.results import orientation_note
     from camkit.pipeline import calibrate_files, collect_images, prepare_outputs
-    from camkit.target import Checkerboard
 
     console = _console()
-    board = Checkerboard(*args.board, args.square)
+    board = _target_of(args)
     fix, free = tuple(args.fix or ()), tuple(args.free or ())
     held_parameters(args.model, fix, free)  # a misspelt name fails here, before any work
     inputs = collect_images(args.images)
     prepare_outputs({"-o": args.output, "--json": args.json, "--report": args.report}, inputs.paths)
-    console.print(f"camkit calibrate: {len(inputs.paths)} images, board {args.board[0]}x{args.board[1]} inner "
-                  f"corners, {args.square * 1000:g} mm squares, model {args.model}")
+    console.print(f"camkit calibrate: {len(inputs.paths)} images, {_describe(board)}, model {args.model}")
     for path, why in inputs.skipped:
         console.print(f"skipped {path}: {why}")
     try:
@@ -178,18 +176,40 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _describe(board) -> str:
+    from camkit.target import Charuco, Checkerboard
+
+    if isinstance(board, Checkerboard):
+        return (f"board {board.inner_cols}x{board.inner_rows} inner corners, {board.square * 1000:g} mm "
+                "squares")
+    if isinstance(board, Charuco):
+        return (f"ChArUco board {board.squares_x}x{board.squares_y} squares of {board.square * 1000:g} mm, "
+                f"{board.marker * 1000:g} mm markers, {board.dictionary}{' (legacy)' if board.legacy else ''}")
+    return f"{board.name} target"
+
+
 def _cmd_board(args: argparse.Namespace) -> int:
     from camkit.pipeline import prepare_outputs
-    from camkit.target import Checkerboard
+    from camkit.target import Charuco, Checkerboard
     from camkit.target.sheet import board_layout, parse_paper, write_board
 
-    board = Checkerboard(*args.inner, args.square, margin=args.margin)
+    if args.target == "charuco":
+        missing = [f for f, v in (("--squares", args.squares), ("--square", args.square), ("--marker", args.marker))
+                   if v is None]
+        if missing:
+            raise ParameterError(f"{', '.join(missing)}: a ChArUco board needs --squares, --square and --marker")
+        board = Charuco(*args.squares, args.square, args.marker, args.dictionary, legacy=args.legacy)
+    else:
+        if args.inner is None or args.square is None:
+            raise ParameterError("--inner, --square: a checkerboard needs both (inner corners, e.g. --inner 9x6)")
+        board = Checkerboard(*args.inner, args.square, margin=args.margin)
     paper = parse_paper(args.paper) if args.paper else None
     layout = board_layout(board, paper)  # a board that does not fit is refused here
     prepare_outputs({"-o": args.output})
     path = write_board(args.output, board, paper=paper, dpi=args.dpi)
-    print(f"wrote {path}: {args.inner[0]}x{args.inner[1]} inner corners ({args.inner[0] + 1}x{args.inner[1] + 1} "
-          f"squares of {args.square * 1000:g} mm), page {layout.page_w_mm:g} x {layout.page_h_mm:g} mm. "
+    what = (f"{args.inner[0]}x{args.inner[1]} inner corners ({args.inner[0] + 1}x{args.inner[1] + 1} squares of "
+            f"{args.square * 1000:g} mm)" if args.target != "charuco" else _describe(board))
+    print(f"wrote {path}: {what}, page {layout.page_w_mm:g} x {layout.page_h_mm:g} mm. "
           "Print at 100 % (actual size) and measure a square.")
     return 0
 
@@ -256,6 +276,40 @@ def _board_size(text: str) -> tuple[int, int]:
 _UNITS = (("mm", 1e-3), ("cm", 1e-2), ("in", 0.0254), ("m", 1.0))
 
 
+def _target_spec(text: str):
+    """A target on the command line: ``checkerboard:9x6,25mm`` (inner corners, square) or
+    ``charuco:11x8,30mm,22mm,DICT_5X5_100[,legacy]`` (squares, square, marker, dictionary)."""
+    from camkit.target import Charuco, Checkerboard
+
+    kind, _, rest = text.partition(":")
+    parts = [p.strip() for p in rest.split(",")] if rest else []
+    try:
+        if kind == "checkerboard" and len(parts) == 2:
+            return Checkerboard(*_board_size(parts[0]), _length_m(parts[1]))
+        if kind == "charuco" and len(parts) in (4, 5) and (len(parts) == 4 or parts[4] == "legacy"):
+            return Charuco(*_board_size(parts[0]), _length_m(parts[1]), _length_m(parts[2]), parts[3],
+                           legacy=len(parts) == 5)
+    except CamkitError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    raise argparse.ArgumentTypeError(
+        f"expected checkerboard:COLSxROWS,SQUARE (inner corners, e.g. checkerboard:9x6,25mm) or "
+        f"charuco:COLSxROWS,SQUARE,MARKER,DICTIONARY[,legacy] (squares, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100), "
+        f"got {text!r}")
+
+
+def _target_of(args: argparse.Namespace, board_flag: str = "--board"):
+    """The target of a command: ``--target``, or a checkerboard from ``--board``/``--square``."""
+    from camkit.target import Checkerboard
+
+    if args.target is not None:
+        if args.board is not None:
+            raise ParameterError(f"--target, {board_flag}: give the target one way, not both")
+        return args.target
+    if args.board is None or args.square is None:
+        raise ParameterError(f"{board_flag}, --square: a checkerboard needs both (or give --target)")
+    return Checkerboard(*args.board, args.square)
+
+
 def _length_m(text: str) -> float:
     """A length with its unit: '30mm', '3cm', '0.03m' or '1.5in' (returned in metres). A bare
     number is refused: '30' could be 30 mm or 30 m."""
@@ -311,7 +365,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from camkit.target import Checkerboard
 
     camera = default_camera(args.model)
-    board = Checkerboard(*args.board, args.square)
+    board = args.target if args.target is not None else Checkerboard(*args.board, args.square)
     exposure_time = 0.01
     effects = Effects(
         chromatic=LateralChromaticAberration(vr=1.0006, vb=0.9994) if args.chromatic else None,
@@ -325,8 +379,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         demosaic=None if args.demosaic == "raw" else args.demosaic,
     )
     console = _console()
-    console.print(f"camkit simulate: {args.views} views of a {args.board[0]}x{args.board[1]} board "
-                  f"({args.square * 1000:g} mm squares) through the built-in {camera.name} camera, seed {args.seed}")
+    console.print(f"camkit simulate: {args.views} views of the {_describe(board)} through the built-in "
+                  f"{camera.name} camera, seed {args.seed}")
     with _Progress(console) as progress:
         out = simulate_dataset(args.output, camera, board, args.views, seed=args.seed, effects=effects,
                                bit_depth=args.bit_depth,
@@ -348,8 +402,11 @@ def build_parser() -> argparse.ArgumentParser:
     cal = sub.add_parser("calibrate", help="calibrate a camera from photos of a checkerboard")
     cal.add_argument("images", nargs="+", metavar="IMAGES",
                      help="image files, folders or glob patterns (JPEG, PNG, TIFF, BMP, WebP, PGM/PPM, camera RAW)")
-    cal.add_argument("--board", type=_board_size, required=True, help="inner corners COLSxROWS, e.g. 9x6")
-    cal.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
+    cal.add_argument("--board", type=_board_size, help="a checkerboard's inner corners COLSxROWS, e.g. 9x6")
+    cal.add_argument("--square", type=_length_m, help="the checkerboard's square side, e.g. 25mm")
+    cal.add_argument("--target", type=_target_spec, metavar="SPEC",
+                     help="another target instead of --board/--square: charuco:COLSxROWS,SQUARE,MARKER,DICTIONARY"
+                          "[,legacy] (squares; e.g. charuco:11x8,30mm,22mm,DICT_5X5_100)")
     cal.add_argument("--model", default="brown-conrady", choices=_model_names(),
                      help="lens model (kannala-brandt for fisheye lenses)")
     cal.add_argument("--fix", action="append", metavar="NAME",
@@ -362,9 +419,16 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--report", metavar="HTML", help="also write an HTML report here")
     cal.set_defaults(func=_cmd_calibrate)
 
-    brd = sub.add_parser("board", help="write a printable checkerboard (pdf, svg or png) at exact scale")
-    brd.add_argument("--inner", type=_board_size, required=True, help="inner corners COLSxROWS, e.g. 9x6")
-    brd.add_argument("--square", type=_length_m, required=True, help="square side, e.g. 25mm")
+    brd = sub.add_parser("board", help="write a printable checkerboard or ChArUco board (pdf, svg or png) at exact "
+                                       "scale")
+    brd.add_argument("--target", default="checkerboard", choices=("checkerboard", "charuco"),
+                     help="the kind of board (default checkerboard)")
+    brd.add_argument("--inner", type=_board_size, help="checkerboard: inner corners COLSxROWS, e.g. 9x6")
+    brd.add_argument("--squares", type=_board_size, help="ChArUco: squares COLSxROWS, e.g. 11x8")
+    brd.add_argument("--square", type=_length_m, help="square side, e.g. 25mm")
+    brd.add_argument("--marker", type=_length_m, help="ChArUco: marker side, e.g. 22mm")
+    brd.add_argument("--dictionary", default="DICT_5X5_100", help="ChArUco: marker dictionary (default DICT_5X5_100)")
+    brd.add_argument("--legacy", action="store_true", help="ChArUco: OpenCV's pattern before 4.6")
     brd.add_argument("--margin", type=_length_m, help="white margin (default one square)")
     brd.add_argument("--dpi", type=int, default=300, help="pixels per inch for .png (default 300)")
     brd.add_argument("--paper", help="centre the board on A4, A3, letter or WxHmm paper (default: the board's own "
@@ -403,6 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--views", type=int, default=15, help="number of views (default 15)")
     sim.add_argument("--board", type=_board_size, default=(9, 6), help="inner corners COLSxROWS (default 9x6)")
     sim.add_argument("--square", type=_length_m, default=0.03, help="square side, e.g. 30mm (default 0.03 m)")
+    sim.add_argument("--target", type=_target_spec, metavar="SPEC",
+                     help="another target instead of --board/--square, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100")
     sim.add_argument("--model", default="brown-conrady", choices=_model_names())
     sim.add_argument("--bit-depth", type=int, default=8, choices=(8, 16),
                      help="bits per sample of the files: 8 (default) or 16 (the sensor's full range, white at 65535)")

@@ -18,12 +18,12 @@ from camkit.geometry.rotation import matrix_from_rvec
 from camkit.io.images import write_png
 from camkit.lens.base import MODELS, CameraModel, get_model
 from camkit.render.effects import Effects, render_view
-from camkit.target import Checkerboard
+from camkit.target import Target
 
 __all__ = ["camera_to_dict", "default_camera", "plan_views", "simulate_dataset"]
 
 
-def plan_views(camera: CameraModel, board: Checkerboard, n: int, rng: np.random.Generator, *,
+def plan_views(camera: CameraModel, board: Target, n: int, rng: np.random.Generator, *,
                tilt_deg: tuple[float, float] = (10.0, 50.0), fill: tuple[float, float] = (0.35, 0.6),
                max_tries: int = 200) -> list[Pose]:
     """Poses ``cam_from_target`` for ``n`` views: board centres spread over the image on a
@@ -37,7 +37,8 @@ def plan_views(camera: CameraModel, board: Checkerboard, n: int, rng: np.random.
     W, H = camera.width, camera.height
     pts = board.object_points()
     centre = pts.mean(axis=0)
-    span = float(np.ptp(pts[:, 0]) + 2 * board.square)
+    marks = board.sheet().black  # the printed pattern's width (a checkerboard's squares)
+    span = float(marks[:, 2].max() - marks[:, 0].min())
     g = int(np.ceil(np.sqrt(n)))
     cells = [((i + 0.5) / g, (j + 0.5) / g) for j in range(g) for i in range(g)]
     rng.shuffle(cells)
@@ -94,7 +95,7 @@ def _to_file_image(img: np.ndarray, scale: float, bit_depth: int) -> np.ndarray:
     return np.clip(np.floor(img.astype(np.float64) * scale + 0.5), 0, top).astype(dtype)
 
 
-def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Checkerboard, views: int, *,
+def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Target, views: int, *,
                      seed: int, effects: Effects | None = None, progress: Any = None, bit_depth: int = 8) -> Path:
     """Render ``views`` planned views and write ``view_XXX.png`` and ``truth.json`` into
     ``out_dir`` (created if needed). Reproducible: the same seed gives the same bytes.
@@ -104,9 +105,10 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Che
     without a sensor (0..1) as ``round(x * scale)``; ``truth.json`` records ``bit_depth``,
     ``sensor_bit_depth`` and ``scale``.
 
-    ``truth.json`` holds the camera (type, size, parameters), the board, and per view the image
-    name, the pose (rotation vector and translation of ``cam_from_target``), every inner
-    corner's exact pixel position (null where not projectable) and its visibility.
+    ``truth.json`` holds the camera (type, size, parameters), the target (``board``: its type
+    and fields), and per view the image name, the pose (rotation vector and translation of
+    ``cam_from_target``), every target point's exact pixel position (null where not
+    projectable) and its visibility. Any registered target (a checkerboard, a ChArUco board).
     Returns the folder.
     """
     if bit_depth not in (8, 16):
@@ -134,8 +136,7 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Che
         "version": 1,
         "seed": seed,
         "camera": camera_to_dict(camera),
-        "board": {"inner_cols": board.inner_cols, "inner_rows": board.inner_rows, "square": board.square,
-                  "margin": board.margin},
+        "board": board.to_dict(),
         "pixel_origin": "centre of the top-left pixel is (0, 0)",
         "bit_depth": bit_depth,
         "sensor_bit_depth": sensor_bits,

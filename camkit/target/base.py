@@ -168,6 +168,12 @@ class Target(abc.ABC):
         """``(u_min, v_min, u_max, v_max)`` of the printed sheet, metres, target frame."""
         return self.sheet().extent
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"type": name, and every field by name}``: what a dataset's truth records."""
+        import dataclasses
+
+        return {"type": self.name, **{f.name: getattr(self, f.name) for f in dataclasses.fields(self)}}  # type: ignore[arg-type]
+
     def size_note(self) -> str:
         """What a user should check when the target is not found: its size as they gave it
         (completes "Check the ...")."""

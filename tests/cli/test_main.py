@@ -4,6 +4,7 @@ raised, and inputs are never overwritten."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import re
 import shutil
@@ -411,3 +412,51 @@ def test_simulate_bit_depth_and_scale(tmp_path):
         assert truth["scale"] == pytest.approx((255.0 if depth == 8 else 65535.0) / 4095)
         # white paper near the top of the file's range, as a viewer shows a camera's photo
         assert np.percentile(img, 99) > 0.6 * np.iinfo(dtype).max
+
+
+def test_charuco_board_printed_at_exact_scale_is_read_by_opencv(tmp_path):
+    """`camkit board --target charuco`: the PNG at 200 dpi, read by OpenCV's CharucoDetector
+    (an independent detector): every marker and corner, and the squares measure 30 mm."""
+    import cv2
+
+    out = tmp_path / "c.png"
+    assert main(["board", "--target", "charuco", "--squares", "6x5", "--square", "30mm", "--marker", "22mm",
+                 "--dictionary", "DICT_5X5_100", "--dpi", "200", "-o", str(out)]) == 0
+    img = np.ascontiguousarray(read_image(out)[:, :, 0])  # matplotlib writes RGBA; the sheet is grey
+    d = cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_5X5_100)
+    corners, ids, _, mids = cv2.aruco.CharucoDetector(cv2.aruco.CharucoBoard((6, 5), 0.03, 0.022, d)).detectBoard(img)
+    assert sorted(np.ravel(mids)) == list(range(15)) and sorted(np.ravel(ids)) == list(range(20))
+    grid = corners.reshape(-1, 2)[np.argsort(np.ravel(ids))].reshape(4, 5, 2)
+    square_px = np.hypot(*(grid[:, -1] - grid[:, 0]).T).mean() / 4
+    assert square_px / (0.03 * 200 / 0.0254) == pytest.approx(1.0, abs=0.003)  # 236 px squares, +-0.5 px edges
+
+
+def test_charuco_simulate_then_calibrate_recovers_the_camera(tmp_path, capsys):
+    spec = "charuco:11x8,30mm,22mm,DICT_5X5_100"
+    assert main(["simulate", "--target", spec, "--views", "6", "--seed", "3", "-o", str(tmp_path / "sim")]) == 0
+    truth = json.loads((tmp_path / "sim" / "truth.json").read_text())
+    assert truth["board"] == {"type": "charuco", "squares_x": 11, "squares_y": 8, "square": 0.03, "marker": 0.022,
+                              "dictionary": "DICT_5X5_100", "legacy": False}
+    assert main(["calibrate", str(tmp_path / "sim"), "--target", spec, "-o", str(tmp_path / "cam.json")]) == 0
+    cam = json.loads((tmp_path / "cam.json").read_text())["model"]
+    # Noise-free renders of 70 corners a view: the simulated camera to a tenth of a pixel.
+    for name in ("fx", "fy", "cx", "cy"):
+        assert cam[name] == pytest.approx(truth["camera"][name], abs=0.1), name
+
+
+@pytest.mark.parametrize("args,message", [
+    (["--target", "charuco:11x8,30mm,22mm"], "expected checkerboard:COLSxROWS,SQUARE"),
+    (["--target", "charuco:11x8,30mm,40mm,DICT_5X5_100"], "marker: expected a marker smaller than its square"),
+    (["--target", "charuco:11x8,30mm,22mm,DICT_9X9_1"], "dictionary: expected one of"),
+    (["--target", "checkerboard:9x6,25mm", "--board", "9x6"], "--target, --board: give the target one way"),
+    (["--board", "9x6"], "--board, --square: a checkerboard needs both"),
+])
+def test_calibrate_target_refusals(tmp_path, capsys, args, message):
+    img = tmp_path / "a.png"
+    write_png(img, np.zeros((10, 10), np.uint8))
+    # argparse refuses a malformed spec (exit 2); the command refuses a contradiction (1).
+    parse_error = message.startswith(("expected", "marker", "dictionary"))
+    with pytest.raises(SystemExit) if parse_error else contextlib.nullcontext():
+        code = main(["calibrate", str(img), *args, "-o", str(tmp_path / "c.json")])
+        assert code == 1
+    assert message in capsys.readouterr().err

@@ -66,7 +66,8 @@ def test_cli_simulate(tmp_path, capsys):
                "--bit-depth", "16"])
     assert rc == 0
     doc = json.loads((tmp_path / "truth.json").read_text())
-    assert doc["board"] == {"inner_cols": 7, "inner_rows": 5, "square": 0.035, "margin": 0.035}
+    assert doc["board"] == {"type": "checkerboard", "inner_cols": 7, "inner_rows": 5, "square": 0.035,
+                            "margin": 0.035}
     raw = np.asarray(Image.open(tmp_path / "view_000.png"))
     assert raw.ndim == 2 and raw.dtype == np.uint16  # the raw 12-bit mosaic, scaled to 16 bits
     assert doc["bit_depth"] == 16 and doc["sensor_bit_depth"] == 12
