@@ -19,7 +19,8 @@ import numba
 from benchmarks.harness import markdown_table, run_case
 
 MODULES = [
-    "bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_detect", "bench_calib",
+    "bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_detect", "bench_charuco",
+    "bench_calib",
 ]
 RESULTS = Path(__file__).with_name("RESULTS.md")
 NOTES = Path(__file__).with_name("notes.md")  # appended to RESULTS.md: what a table alone cannot say

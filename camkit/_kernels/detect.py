@@ -136,3 +136,14 @@ def stretch(g: np.ndarray, lo: float, inv: float) -> None:  # pragma: no cover -
     for y in prange(H):
         for x in range(W):
             g[y, x] = (g[y, x] - lo) * inv
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def half_mean(img: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out[y, x]`` = the mean of ``img``'s 2x2 block at (2x, 2y), summed in the order
+    (0, 0), (1, 0) rows, then (0, 1), (1, 1), times 0.25 (as NumPy's slice sum)."""
+    h, w = out.shape
+    for y in prange(h):
+        for x in range(w):
+            out[y, x] = 0.25 * (((img[2 * y, 2 * x] + img[2 * y + 1, 2 * x]) + img[2 * y, 2 * x + 1])
+                                + img[2 * y + 1, 2 * x + 1])

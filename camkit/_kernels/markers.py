@@ -96,10 +96,10 @@ def region_quads(labels: np.ndarray, n: int, min_area: int, max_area: int, min_s
                  quads: np.ndarray) -> None:  # pragma: no cover - numba
     """Per region k (1..n): ``stats[k - 1] = (area, x0, y0, x1, y1)`` (bounding box inclusive)
     and, for the regions of ``min_area`` to ``max_area`` pixels whose box is ``min_side`` or
-    more a side, ``quads[k - 1]`` (4, 2): the farthest pixel from the centroid (a), the
+    more a side, at most 8 times longer than wide and a fifth filled, ``quads[k - 1]`` (4, 2): the farthest pixel from the centroid (a), the
     farthest from a (b), and the farthest from the line ab on either side (e, f), as (a, e, b,
     f). The area of a region without a quad (too small or large, or all on one side of ab) is
-    made negative. Four passes over the image (the last three skip the other regions)."""
+    made negative. One pass over the image, then three over each kept region's box."""
     H, W = labels.shape
     sx = np.zeros(n + 1)
     sy = np.zeros(n + 1)
@@ -114,61 +114,66 @@ def region_quads(labels: np.ndarray, n: int, min_area: int, max_area: int, min_s
             k = labels[y, x]
             if k == 0:
                 continue
-            s = stats[k - 1]
-            s[0] += 1
-            s[1] = min(s[1], x)
-            s[2] = min(s[2], y)
-            s[3] = max(s[3], x)
-            s[4] = max(s[4], y)
+            stats[k - 1, 0] += 1
+            if x < stats[k - 1, 1]:
+                stats[k - 1, 1] = x
+            if y < stats[k - 1, 2]:
+                stats[k - 1, 2] = y
+            if x > stats[k - 1, 3]:
+                stats[k - 1, 3] = x
+            if y > stats[k - 1, 4]:
+                stats[k - 1, 4] = y
             sx[k] += x
             sy[k] += y
     keep = np.zeros(n + 1, dtype=np.bool_)
     for k in range(1, n + 1):
-        s = stats[k - 1]
-        keep[k] = (min_area <= s[0] <= max_area and s[3] - s[1] + 1 >= min_side and s[4] - s[2] + 1 >= min_side)
+        area = stats[k - 1, 0]
+        w = stats[k - 1, 3] - stats[k - 1, 1] + 1
+        h = stats[k - 1, 4] - stats[k - 1, 2] + 1
+        # A quad's box: not too thin, and a fifth of it filled at least (a curve or a cable is not).
+        keep[k] = (min_area <= area <= max_area and min(w, h) >= min_side and max(w, h) <= 8 * min(w, h)
+                   and 5 * area >= w * h)
         if keep[k]:
-            sx[k] /= s[0]
-            sy[k] /= s[0]
-    best = np.full(n + 1, -1.0)
-    for y in range(H):  # a: farthest from the centroid
-        for x in range(W):
-            k = labels[y, x]
-            if not keep[k]:
-                continue
-            d = (x - sx[k]) ** 2 + (y - sy[k]) ** 2
-            if d > best[k]:
-                best[k] = d
-                quads[k - 1, 0, 0] = x
-                quads[k - 1, 0, 1] = y
-    best[:] = -1.0
-    for y in range(H):  # b: farthest from a
-        for x in range(W):
-            k = labels[y, x]
-            if not keep[k]:
-                continue
-            d = (x - quads[k - 1, 0, 0]) ** 2 + (y - quads[k - 1, 0, 1]) ** 2
-            if d > best[k]:
-                best[k] = d
-                quads[k - 1, 2, 0] = x
-                quads[k - 1, 2, 1] = y
+            sx[k] /= area
+            sy[k] /= area
     hi = np.full(n + 1, -np.inf)
     lo = np.full(n + 1, np.inf)
-    for y in range(H):  # e, f: farthest from the line ab on either side
-        for x in range(W):
-            k = labels[y, x]
-            if not keep[k]:
-                continue
-            ax, ay = quads[k - 1, 0, 0], quads[k - 1, 0, 1]
-            dx, dy = quads[k - 1, 2, 0] - ax, quads[k - 1, 2, 1] - ay
-            side = dx * (y - ay) - dy * (x - ax)
-            if side > hi[k]:
-                hi[k] = side
-                quads[k - 1, 1, 0] = x
-                quads[k - 1, 1, 1] = y
-            if side < lo[k]:
-                lo[k] = side
-                quads[k - 1, 3, 0] = x
-                quads[k - 1, 3, 1] = y
+    for k in range(1, n + 1):  # passes 2-4 over each kept region's own box only
+        if not keep[k]:
+            continue
+        x0, y0, x1, y1 = stats[k - 1, 1], stats[k - 1, 2], stats[k - 1, 3], stats[k - 1, 4]
+        best = -1.0
+        for y in range(y0, y1 + 1):  # a: farthest from the centroid
+            for x in range(x0, x1 + 1):
+                if labels[y, x] == k:
+                    d = (x - sx[k]) ** 2 + (y - sy[k]) ** 2
+                    if d > best:
+                        best = d
+                        quads[k - 1, 0, 0] = x
+                        quads[k - 1, 0, 1] = y
+        ax, ay = quads[k - 1, 0, 0], quads[k - 1, 0, 1]
+        best = -1.0
+        for y in range(y0, y1 + 1):  # b: farthest from a
+            for x in range(x0, x1 + 1):
+                if labels[y, x] == k:
+                    d = (x - ax) ** 2 + (y - ay) ** 2
+                    if d > best:
+                        best = d
+                        quads[k - 1, 2, 0] = x
+                        quads[k - 1, 2, 1] = y
+        dx, dy = quads[k - 1, 2, 0] - ax, quads[k - 1, 2, 1] - ay
+        for y in range(y0, y1 + 1):  # e, f: farthest from the line ab on either side
+            for x in range(x0, x1 + 1):
+                if labels[y, x] == k:
+                    side = dx * (y - ay) - dy * (x - ax)
+                    if side > hi[k]:
+                        hi[k] = side
+                        quads[k - 1, 1, 0] = x
+                        quads[k - 1, 1, 1] = y
+                    if side < lo[k]:
+                        lo[k] = side
+                        quads[k - 1, 3, 0] = x
+                        quads[k - 1, 3, 1] = y
     for k in range(1, n + 1):  # a region left out, or on one side of ab, has no quad: mark it
         if not (keep[k] and hi[k] > 0 and lo[k] < 0):
             stats[k - 1, 0] = -stats[k - 1, 0]

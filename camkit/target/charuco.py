@@ -262,7 +262,7 @@ def _read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary) -> tuple
     # The white margin around the marker: half a cell outside each side's middle.
     ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
     pts = np.concatenate([cells, ring])
-    p = np.einsum("kij,pj->kpi", Hs, np.c_[pts, np.ones(len(pts))])
+    p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
     px = p[:, :, :2] / p[:, :, 2:]
     vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
                    "bilinear").reshape(K, len(pts))

@@ -294,9 +294,9 @@ def _corner_spacing(corners: np.ndarray, board: Checkerboard) -> float:
 
 def _half(img: np.ndarray) -> np.ndarray:
     """The 2x2 mean: pixel (x, y) of the half image covers full-resolution pixels 2x..2x+1."""
-    h, w = img.shape[0] // 2 * 2, img.shape[1] // 2 * 2
-    a = img[:h, :w]
-    return np.ascontiguousarray(0.25 * (a[0::2, 0::2] + a[1::2, 0::2] + a[0::2, 1::2] + a[1::2, 1::2]))
+    out = np.empty((img.shape[0] // 2, img.shape[1] // 2))
+    detect_kernels.half_mean(np.ascontiguousarray(img, dtype=np.float64), out)
+    return out
 
 
 def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard) -> Detection:

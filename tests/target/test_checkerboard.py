@@ -224,3 +224,13 @@ def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
         lattice_kernels.sample_points(img, np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1]), cubic, out)
         ref = remap(img, xy[None], interpolation=name, border="replicate")[0]
         np.testing.assert_allclose(out, ref, atol=1e-9)
+
+
+def test_half_mean_kernel_matches_numpy():
+    """The pyramid's 2x2 mean kernel against NumPy's slice sum, bit for bit (odd sizes drop the
+    last row and column)."""
+    from camkit.target.checkerboard import _half
+
+    a = np.random.default_rng(0).random((301, 402))
+    b = a[:300, :402]
+    np.testing.assert_array_equal(_half(a), 0.25 * (b[0::2, 0::2] + b[1::2, 0::2] + b[0::2, 1::2] + b[1::2, 1::2]))

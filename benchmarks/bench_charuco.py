@@ -1,0 +1,71 @@
+"""ChArUco detection against OpenCV's CharucoDetector (issue 23, item 6).
+
+Images, the same for both sides in the same run:
+
+- 640x480: OpenCV's tutorial photos (5x7 squares, DICT_6X6_250; ../shared/data).
+- 12 MP: three views of an 11x8 board (DICT_5X5_100) rendered by camkit's simulator at
+  1280x960 and enlarged to 4000x3000 by cv2.resize (bicubic).
+- No board: noise at 640x480.
+
+``cv2.aruco.CharucoDetector(board).detectBoard`` runs with its default parameters, as a user
+would call it.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from benchmarks.harness import Case, median_time
+from camkit.io import read_image
+from camkit.render import default_camera, plan_views, render_target
+from camkit.target import Charuco
+
+DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "charuco_opencv_tutorial"
+
+
+def _cv(board: Charuco):
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary))
+    return cv2.aruco.CharucoDetector(cv2.aruco.CharucoBoard((board.squares_x, board.squares_y), board.square,
+                                                            board.marker, d))
+
+
+def _case(images, board, label, size, repeats) -> Case:
+    det = _cv(board)
+    return Case(f"detect a ChArUco board, {label}", size, lambda: [board.detect(im) for im in images],
+                "cv2.aruco.CharucoDetector.detectBoard", lambda: [det.detectBoard(im) for im in images],
+                target=1.0, repeats=repeats, warmup=1)
+
+
+def cases() -> list[Case]:
+    out = []
+    if DATA.is_dir():
+        tutorial = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
+        photos = [np.ascontiguousarray(read_image(p)[..., 0] if read_image(p).ndim == 3 else read_image(p))
+                  for p in sorted((DATA / "images").glob("*.jpg"))]
+        out.append(_case(photos, tutorial, f"{len(photos)} real photos", "640x480", repeats=5))
+    else:
+        print(f"  (skipping the real ChArUco photos: {DATA} is absent)")
+    board = Charuco(11, 8, 0.03, 0.022, "DICT_5X5_100")
+    cam = default_camera("brown-conrady")
+    views = []
+    for pose in plan_views(cam, board, 3, np.random.default_rng(1)):
+        img, _ = render_target(cam, pose, board)
+        u8 = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+        views.append(cv2.resize(u8, (4000, 3000), interpolation=cv2.INTER_CUBIC))
+    out.append(_case(views, board, "3 rendered views enlarged", "12 MP (4000x3000)", repeats=3))
+    return out
+
+
+def extra_tables() -> str:
+    board = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
+    noise = np.random.default_rng(0).integers(0, 256, (480, 640), dtype=np.uint8)
+    ours = median_time(lambda: board.detect(noise), repeats=5, warmup=1)
+    det = _cv(board)
+    theirs = median_time(lambda: det.detectBoard(noise), repeats=5, warmup=1)
+    return ("| an image with no board (ChArUco 5x7 asked) | camkit | cv2 CharucoDetector | target |\n"
+            "|---|---|---|---|\n"
+            f"| 640x480 noise | {ours * 1e3:.1f} ms | {theirs * 1e3:.1f} ms | <= 50 ms: "
+            f"{'met' if ours <= 0.05 else 'MISSED'} |\n")
