@@ -96,10 +96,11 @@ def region_quads(labels: np.ndarray, n: int, min_area: int, max_area: int, min_s
                  quads: np.ndarray) -> None:  # pragma: no cover - numba
     """Per region k (1..n): ``stats[k - 1] = (area, x0, y0, x1, y1)`` (bounding box inclusive)
     and, for the regions of ``min_area`` to ``max_area`` pixels whose box is ``min_side`` or
-    more a side, at most 8 times longer than wide and a fifth filled, ``quads[k - 1]`` (4, 2): the farthest pixel from the centroid (a), the
-    farthest from a (b), and the farthest from the line ab on either side (e, f), as (a, e, b,
-    f). The area of a region without a quad (too small or large, or all on one side of ab) is
-    made negative. One pass over the image, then three over each kept region's box."""
+    more a side, at most 8 times longer than wide and a fifth filled, ``quads[k - 1]`` (4, 2):
+    the farthest pixel from the centroid (a), the farthest from a (b), and the farthest from
+    the line ab on either side (e, f), as (a, e, b, f). The area of a region without a quad
+    (left out, or all on one side of ab) is made negative. One pass over the image, then three
+    over each kept region's box."""
     H, W = labels.shape
     sx = np.zeros(n + 1)
     sy = np.zeros(n + 1)
