@@ -25,13 +25,15 @@ Detection reads the markers first, then places the chessboard corners by their s
 3. the markers' ids are checked against the board: an id the board does not have is
    another board's; an id seen twice is dropped; and each marker must be confirmed by a
    neighbour (another marker within two squares such that one homography maps both markers'
-   board corners onto their eight image corners within 8 % of a square, 2 px at least) and
+   board corners onto their eight image corners within 15 % of a square, 2 px at least) and
    contradicted by fewer than confirm it;
 4. each chessboard corner next to a confirmed marker is predicted through the markers'
    homographies (averaged over the markers around it) and placed at the saddle point of the
    smoothed image (camkit's sub-pixel estimator, window an eleventh of the square's image
-   size, 2 to 5 px), with its sigma; a corner that moves more than a fifth of a square, or
-   whose fit is over twice the median sigma, is dropped.
+   size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
+   px at least), that is not an X-junction on a circle inside the white margin (four
+   alternating, point-symmetric sectors), or whose fit is over twice the median sigma, is
+   dropped.
 
 A corner is returned only next to a confirmed marker, so a board half out of the frame gives
 every corner it shows beside a marker that confirms another.
@@ -232,6 +234,22 @@ def _refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float) -> 
     return q - shift, sg
 
 
+def _is_x_corner(grey: np.ndarray, pts: np.ndarray, size: np.ndarray, board: Charuco) -> np.ndarray:
+    """Which points are chessboard X-corners: on a circle inside the white margin that keeps
+    the markers away (0.6 of it, 1.5 px at least), the shade crosses its mean four times,
+    with contrast, and is point-symmetric (opposite squares alike), as step 1 of the
+    checkerboard detector asks; a marker's own corner or bit junction is not."""
+    margin = 0.5 * (board.square - board.marker) / board.square * size
+    rho = np.maximum(0.6 * margin, 1.5)
+    ang = np.arange(32) * 2 * np.pi / 32
+    v = _sample(grey, pts[:, :1] + rho[:, None] * np.cos(ang), pts[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
+    sign = v > v.mean(axis=1, keepdims=True)
+    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
+    contrast = v.max(axis=1) - v.min(axis=1)
+    sym = np.abs(v - np.roll(v, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
+    return (changes == 4) & (contrast > 0.15) & (sym < 0.25)
+
+
 def _apply(H: np.ndarray, p: np.ndarray) -> np.ndarray:
     q = np.c_[p, np.ones(len(p))] @ H.T
     return q[:, :2] / q[:, 2:]
@@ -326,33 +344,45 @@ def _quads(g: np.ndarray, min_side: int) -> np.ndarray:
     return allq[keep]
 
 
-#: Markers are looked for at a level whose longer side is at most this (2x2 means); the corners
-#: are refined on the full image.
+#: Markers are looked for first at a level whose longer side is at most this (2x2 means), then
+#: finer where that level reads too little; the corners are refined on the full image.
 _MARKER_LEVEL_SIDE = 1600
 
 
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image)
-    g, factor = full, 1
-    while max(g.shape) > _MARKER_LEVEL_SIDE:
-        g, factor = _half(g), factor * 2
+    levels = [(full, 1)]
+    while max(levels[-1][0].shape) > _MARKER_LEVEL_SIDE:
+        levels.append((_half(levels[-1][0]), levels[-1][1] * 2))
     d = board.aruco
+    n_cells = d.marker_size + 2
 
     # 1-2. Markers: quads whose cells read as a code; each code's quads kept once (full-image
-    # pixels).
+    # pixels). From the coarsest level down: a finer one is read where the coarse one gave
+    # fewer than two markers or markers of under 3 px a cell (bits blur together there).
     found: dict[int, list[np.ndarray]] = {}
-    quads = _quads(g, 2 * (d.marker_size + 2))  # two pixels a cell at least
-    codes, turns = _read_markers(g, quads, d) if len(quads) else (np.zeros(0, np.int64), np.zeros(0, np.int64))
-    for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
-        if code < 0:
-            continue
-        # The code's corner j is the quad's corner (j - turns) % 4.
-        corners = (quad[(np.arange(4) - k) % 4] + 0.5) * factor - 0.5
-        span = float(np.ptp(corners, axis=0).max())
-        same = found.setdefault(int(code), [])
-        if not any(np.abs(c - corners).max() < 0.2 * span for c in same):
-            same.append(corners)
+    for g, factor in reversed(levels):
+        quads = _quads(g, 2 * n_cells)  # two pixels a cell at least
+        codes, turns = _read_markers(g, quads, d) if len(quads) else (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        level: dict[int, list[np.ndarray]] = {}
+        for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
+            if code < 0:
+                continue
+            # The code's corner j is the quad's corner (j - turns) % 4.
+            corners = (quad[(np.arange(4) - k) % 4] + 0.5) * factor - 0.5
+            span = float(np.ptp(corners, axis=0).max())
+            same = level.setdefault(int(code), [])
+            # One marker read at two windows: the same place (its centre within half its span).
+            if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
+                same.append(corners)
+        if len(level) >= len(found):
+            found = level  # the finer level's corners where it reads as much
+        # A marker's narrowest side per cell, at this level.
+        cells = [np.hypot(*np.diff(np.vstack([c[0], c[0][:1]]), axis=0).T).min() / factor / n_cells
+                 for c in level.values()]
+        if len(level) >= 2 and np.median(cells) >= 3.0:
+            break
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
@@ -373,7 +403,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         dst = np.stack([np.concatenate([found[m][0], found[j][0]]) for m, j in pairs])
         worst = _homography_misfit(src, dst)
         for (m, j), w in zip(pairs, worst, strict=True):
-            tol = max(2.0 * factor, 0.08 * min(side_px[m], side_px[j]))
+            tol = max(2.0 * factor, 0.15 * min(side_px[m], side_px[j]))
             for a in (m, j):
                 if w < tol:
                     agree[a] += 1
@@ -409,7 +439,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         k = win == r
         q, sg = _refine_patches(full, pred[k], int(r), 1.5 * factor)
         moved = np.hypot(*(q - pred[k]).T)
-        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= 0.2 * size[cand[k]])
+        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
+        ok[ok] = _is_x_corner(full, q[ok], size[cand[k]][ok], board)
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
     good = np.isfinite(sig)

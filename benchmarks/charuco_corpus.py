@@ -1,0 +1,141 @@
+"""ChArUco detection on rendered views, against the exact truth and OpenCV (issue 23, items 3, 4).
+
+Each view (seed = view number): a random board (5-12 x 4-9 squares, markers 55-80 % of the
+square, a 4x4, 5x5 or 6x6 dictionary, legacy or not), the stress corpus's cameras (pinhole,
+barrel, pincushion and Kannala-Brandt fisheye; 0.3-4 MP) and poses (tilt up to 70 degrees,
+squares of 15-120 px; a third of the views partly outside the frame), Gaussian blur of 0-1.5 px,
+and in two views of three sensor-like noise and JPEG compression (quality 60-95, Pillow).
+
+Scored per view against the render's truth:
+
+- wrong ids: returned corners more than 1 px from the true corner of their id;
+- found: corners whose four squares are inside the frame with squares >= 15 px;
+- corner error: median over noise-free views, 95th percentile over the others;
+- OpenCV (``cv2.aruco.CharucoDetector``, defaults; OpenCV >= 5): the ids it returns that camkit
+  does not, and the two detectors' errors on the ids both return.
+
+Run: ``python -m benchmarks.charuco_corpus [--views 500] [--start 0]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import time
+from collections import Counter
+
+import cv2
+import numpy as np
+from PIL import Image
+
+from camkit.render import render_target
+from camkit.render.stress import _blur, _camera, _pose
+from camkit.target import Charuco
+
+DICTS = ("DICT_4X4_250", "DICT_5X5_250", "DICT_6X6_250")
+
+
+def view(seed: int):
+    rng = np.random.default_rng(seed)
+    board = Charuco(int(rng.integers(5, 13)), int(rng.integers(4, 10)), 0.03, 0.03 * rng.uniform(0.55, 0.8),
+                    str(rng.choice(DICTS)), legacy=bool(rng.random() < 0.3))
+    camera, kind = _camera(rng, (0.3, 4.0))
+    partial = rng.random() < 1 / 3
+    for _ in range(20):
+        pose = _pose(rng, camera, board, float(rng.uniform(15, 120)), partial, False)
+        if pose is not None:
+            break
+    else:
+        return None
+    img, truth = render_target(camera, pose, board)
+    sigma = float(rng.uniform(0, 1.5))
+    if sigma > 0.3:
+        img = _blur(img, sigma)
+    noisy = rng.random() < 2 / 3
+    if noisy:
+        img = img + rng.normal(0, rng.uniform(0.005, 0.03), img.shape)
+    u8 = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+    if noisy:
+        buf = io.BytesIO()
+        Image.fromarray(u8).save(buf, format="JPEG", quality=int(rng.integers(60, 96)))
+        u8 = np.asarray(Image.open(buf).convert("L"))
+    return board, camera, kind, pose, u8, truth, noisy
+
+
+def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
+    """Corners whose four squares are inside the frame, with squares of 15 px or more."""
+    s = board.square
+    pts = board.object_points()
+    W, H = camera.width, camera.height
+    offs = np.array([[dx, dy, 0.0] for dx in (-s, 0, s) for dy in (-s, 0, s)])
+    around = camera.project(pose.apply((pts[:, None, :] + offs[None]).reshape(-1, 3))).reshape(len(pts), 9, 2)
+    inside = (np.isfinite(around).all(axis=2) & (around[..., 0] >= 0) & (around[..., 0] <= W - 1)
+              & (around[..., 1] >= 0) & (around[..., 1] <= H - 1)).all(axis=1)
+    step = np.hypot(*(around[:, 5] - around[:, 3]).T) / 2  # across the corner, two squares
+    return inside & (step >= 15)
+
+
+def run(views: int, start: int = 0) -> dict:
+    stats = Counter()
+    err_clean, err_noisy, cv_err, ck_err = [], [], [], []
+    wrong_views = []
+    t = 0.0
+    for seed in range(start, start + views):
+        v = view(seed)
+        if v is None:
+            stats["unplaced"] += 1
+            continue
+        board, camera, _, pose, img, truth, noisy = v
+        stats["views"] += 1
+        t0 = time.perf_counter()
+        det = board.detect(img)
+        t += time.perf_counter() - t0
+        d = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+        wrong = int((d > 1.0).sum())
+        stats["corners returned"] += len(d)
+        stats["wrong"] += wrong
+        if wrong:
+            wrong_views.append(seed)
+        (err_noisy if noisy else err_clean).extend(d[d <= 1.0].tolist())
+        el = eligible(board, camera, pose, truth)
+        stats["eligible"] += int(el.sum())
+        stats["eligible found"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
+        cvb = cv2.aruco.CharucoBoard((board.squares_x, board.squares_y), board.square, board.marker,
+                                     cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary)))
+        cvb.setLegacyPattern(board.legacy)
+        cc, ci, _, _ = cv2.aruco.CharucoDetector(cvb).detectBoard(img)
+        if ci is not None:
+            ci = np.ravel(ci)
+            cc = cc.reshape(-1, 2)
+            stats["opencv corners"] += len(ci)
+            stats["opencv wrong"] += int((np.hypot(*(cc - truth.corners_px[ci]).T) > 1.0).sum())
+            missed = ~np.isin(ci, det.ids)
+            stats["opencv ids camkit misses"] += int(missed.sum())
+            both = ~missed
+            cv_err.extend(np.hypot(*(cc[both] - truth.corners_px[ci[both]]).T).tolist())
+            ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
+    out = dict(stats)
+    out["found %"] = 100.0 * stats["eligible found"] / max(stats["eligible"], 1)
+    out["error median noise-free px"] = float(np.median(err_clean)) if err_clean else float("nan")
+    out["error 95th noisy px"] = float(np.percentile(err_noisy, 95)) if err_noisy else float("nan")
+    out["camkit median on ids both find"] = float(np.median(ck_err)) if ck_err else float("nan")
+    out["opencv median on ids both find"] = float(np.median(cv_err)) if cv_err else float("nan")
+    out["ms a view"] = 1e3 * t / max(stats["views"], 1)
+    out["views with wrong ids"] = wrong_views
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(prog="python -m benchmarks.charuco_corpus")
+    p.add_argument("--views", type=int, default=500)
+    p.add_argument("--start", type=int, default=0)
+    a = p.parse_args()
+    t0 = time.perf_counter()
+    res = run(a.views, a.start)
+    for k, v in res.items():
+        print(f"{k}: {v:.4g}" if isinstance(v, float) else f"{k}: {v}")
+    print(f"({time.perf_counter() - t0:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
