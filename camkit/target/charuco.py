@@ -28,7 +28,8 @@ Detection reads the markers first, then places the chessboard corners by their s
    board corners onto their eight image corners within 15 % of a square, 2 px at least) and
    contradicted by fewer than confirm it;
 4. each chessboard corner next to a confirmed marker is predicted through the markers'
-   homographies (averaged over the markers around it) and placed at the saddle point of the
+   homographies (the least-squares homography of both markers touching it where two are
+   confirmed, else its marker's) and placed at the saddle point of the
    smoothed image (camkit's sub-pixel estimator, window an eleventh of the square's image
    size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
    px at least), that is not an X-junction on a circle inside the white margin (four
@@ -189,6 +190,29 @@ def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
     except np.linalg.LinAlgError:
         return None
     return np.append(h, 1.0).reshape(3, 3)
+
+
+def _fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
+    """The least-squares homography (normalised DLT) taking ``src`` (P, 2) to ``dst`` (P, 2)."""
+    def norm(p):
+        c = p.mean(axis=0)
+        d = np.sqrt(((p - c) ** 2).sum(axis=1)).mean()
+        if not d > 1e-12:
+            return None
+        k = np.sqrt(2.0) / d
+        return np.array([[k, 0.0, -k * c[0]], [0.0, k, -k * c[1]], [0.0, 0.0, 1.0]])
+
+    Ts, Td = norm(src), norm(dst)
+    if Ts is None or Td is None:
+        return None
+    a, b = _apply(Ts, src), _apply(Td, dst)
+    A = np.zeros((2 * len(a), 9))
+    A[0::2, 0:2], A[0::2, 2] = a, 1.0
+    A[0::2, 6:8], A[0::2, 8] = -b[:, :1] * a, -b[:, 0]
+    A[1::2, 3:5], A[1::2, 5] = a, 1.0
+    A[1::2, 6:8], A[1::2, 8] = -b[:, 1:2] * a, -b[:, 1]
+    h = np.linalg.svd(A)[2][-1].reshape(3, 3)
+    return np.linalg.solve(Td, h @ Ts)
 
 
 def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
@@ -429,6 +453,18 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
                 size[cid] = max(size[cid], side_px[m])
     cand = np.flatnonzero(pred_n > 0)
     pred = pred_sum[cand] / pred_n[cand, None]
+    # Where two confirmed markers touch a corner (its four squares), the prediction is their
+    # least-squares homography's (one marker's quad read a pixel off at a thin margin weighs
+    # half; a wider neighbourhood bends away from a homography through a fisheye).
+    conf_sq = ms[confirmed]
+    for i, cid in enumerate(cand):  # one small fit per corner
+        cx, cy = cid % (sx - 1) + 1, cid // (sx - 1) + 1
+        near = [m for m, (x, y) in zip(confirmed, conf_sq, strict=True)
+                if cx - 1 <= x <= cx and cy - 1 <= y <= cy]
+        if len(near) >= 2:
+            Hn = _fit_homography(np.concatenate([obj[m] for m in near]), np.concatenate([found[m][0] for m in near]))
+            if Hn is not None:
+                pred[i] = _apply(Hn, np.array([[cx * board.square, cy * board.square]]))[0]
     H, W = full.shape
     inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
     cand, pred = cand[inside], pred[inside]
