@@ -305,7 +305,8 @@ def _read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary) -> tuple
     ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
     pts = np.concatenate([cells, ring])
     p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
-    px = p[:, :, :2] / p[:, :, 2:]
+    with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate quad's rows: not read below
+        px = p[:, :, :2] / p[:, :, 2:]
     vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
                    "bilinear").reshape(K, len(pts))
     cell = vals[:, :n * n * 9].reshape(K, n, n, 9).mean(axis=3)
