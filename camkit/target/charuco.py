@@ -385,7 +385,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
 
     # 1-2. Markers: quads whose cells read as a code; each code's quads kept once (full-image
     # pixels). From the coarsest level down: a finer one is read where the coarse one gave
-    # fewer than two markers or markers of under 3 px a cell (bits blur together there).
+    # fewer than two markers or markers of under 2 px a cell across (bits blur together there).
     found: dict[int, list[np.ndarray]] = {}
     for g, factor in reversed(levels):
         quads = _quads(g, 2 * n_cells)  # two pixels a cell at least
@@ -406,7 +406,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         # A marker's narrowest side per cell, at this level.
         cells = [np.hypot(*np.diff(np.vstack([c[0], c[0][:1]]), axis=0).T).min() / factor / n_cells
                  for c in level.values()]
-        if len(level) >= 2 and np.median(cells) >= 3.0:
+        if len(level) >= 2 and np.median(cells) >= 2.0:
             break
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
