@@ -192,41 +192,21 @@ def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
     return np.append(h, 1.0).reshape(3, 3)
 
 
-def _fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
-    """The least-squares homography (normalised DLT) taking ``src`` (P, 2) to ``dst`` (P, 2)."""
-    def norm(p):
-        c = p.mean(axis=0)
-        d = np.sqrt(((p - c) ** 2).sum(axis=1)).mean()
-        if not d > 1e-12:
-            return None
-        k = np.sqrt(2.0) / d
-        return np.array([[k, 0.0, -k * c[0]], [0.0, k, -k * c[1]], [0.0, 0.0, 1.0]])
-
-    Ts, Td = norm(src), norm(dst)
-    if Ts is None or Td is None:
-        return None
-    a, b = _apply(Ts, src), _apply(Td, dst)
-    A = np.zeros((2 * len(a), 9))
-    A[0::2, 0:2], A[0::2, 2] = a, 1.0
-    A[0::2, 6:8], A[0::2, 8] = -b[:, :1] * a, -b[:, 0]
-    A[1::2, 3:5], A[1::2, 5] = a, 1.0
-    A[1::2, 6:8], A[1::2, 8] = -b[:, 1:2] * a, -b[:, 1]
-    h = np.linalg.svd(A)[2][-1].reshape(3, 3)
-    return np.linalg.solve(Td, h @ Ts)
+def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Hartley's normalisation of K point sets (K, P, 2): centroid to 0, mean distance to sqrt 2.
+    Returns the normalised points, the centroids (K, 2) and the scales (K,)."""
+    c = p.mean(axis=1)
+    d = np.sqrt(((p - c[:, None]) ** 2).sum(axis=2)).mean(axis=1)
+    k = np.sqrt(2.0) / np.maximum(d, 1e-12)
+    return (p - c[:, None]) * k[:, None, None], c, k
 
 
-def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
-    (in ``dst``'s units) by which the least-squares homography (normalised DLT) misses a point;
-    inf where none is fitted."""
-    def norm(p):
-        c = p.mean(axis=1, keepdims=True)
-        d = np.sqrt(((p - c) ** 2).sum(axis=2)).mean(axis=1)
-        k = np.sqrt(2.0) / np.maximum(d, 1e-12)
-        return (p - c) * k[:, None, None], k
-
-    a, _ = norm(src)
-    b, kb = norm(dst)
+def _fit_homographies(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Least-squares homographies (normalised DLT, Hartley and Zisserman alg. 4.2) of K point
+    sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2), all at once: ``(H, a, b)`` with H (K, 3, 3)
+    between the normalised sets ``a`` and ``b``."""
+    a, ca, ka = _normalise(src)
+    b, cb, kb = _normalise(dst)
     K, P = a.shape[:2]
     A = np.zeros((K, 2 * P, 9))
     A[:, 0::2, 0:2], A[:, 0::2, 2] = a, 1.0
@@ -234,6 +214,24 @@ def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     A[:, 1::2, 3:5], A[:, 1::2, 5] = a, 1.0
     A[:, 1::2, 6:8], A[:, 1::2, 8] = -b[:, :, 1:2] * a, -b[:, :, 1]
     h = np.linalg.svd(A)[2][:, -1].reshape(K, 3, 3)
+    return h, (a, ca, ka), (b, cb, kb)
+
+
+def _fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
+    """The least-squares homography taking ``src`` (P, 2) to ``dst`` (P, 2) (pixels)."""
+    h, (_, ca, ka), (_, cb, kb) = _fit_homographies(src[None], dst[None])
+    Ts = np.array([[ka[0], 0.0, -ka[0] * ca[0, 0]], [0.0, ka[0], -ka[0] * ca[0, 1]], [0.0, 0.0, 1.0]])
+    Td = np.array([[kb[0], 0.0, -kb[0] * cb[0, 0]], [0.0, kb[0], -kb[0] * cb[0, 1]], [0.0, 0.0, 1.0]])
+    H = np.linalg.solve(Td, h[0] @ Ts)
+    return H if np.isfinite(H).all() else None
+
+
+def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
+    (in ``dst``'s units) by which the least-squares homography misses a point; inf where none
+    is fitted."""
+    h, (a, _, _), (b, _, kb) = _fit_homographies(src, dst)
+    K, P = a.shape[:2]
     q = np.einsum("kij,kpj->kpi", h, np.concatenate([a, np.ones((K, P, 1))], axis=2))
     with np.errstate(divide="ignore", invalid="ignore"):
         fit = q[:, :, :2] / q[:, :, 2:]
