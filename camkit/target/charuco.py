@@ -175,38 +175,21 @@ class Charuco(Target):
 # -- detection ---------------------------------------------------------------------------------
 
 
-def _homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
-    """The homography taking 4 points ``src`` (4, 2) to ``dst`` (4, 2) (8 x 8 linear system)."""
-    A = np.zeros((8, 8))
-    b = np.zeros(8)
-    for i in range(4):  # four correspondences: the rows of the system
-        x, y = src[i]
-        u, v = dst[i]
-        A[2 * i] = [x, y, 1, 0, 0, 0, -u * x, -u * y]
-        A[2 * i + 1] = [0, 0, 0, x, y, 1, -v * x, -v * y]
-        b[2 * i], b[2 * i + 1] = u, v
-    try:
-        h = np.linalg.solve(A, b)
-    except np.linalg.LinAlgError:
-        return None
-    return np.append(h, 1.0).reshape(3, 3)
-
-
-def _normalise(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Hartley's normalisation of K point sets (K, P, 2): centroid to 0, mean distance to sqrt 2.
-    Returns the normalised points, the centroids (K, 2) and the scales (K,)."""
-    c = p.mean(axis=1)
-    d = np.sqrt(((p - c[:, None]) ** 2).sum(axis=2)).mean(axis=1)
-    k = np.sqrt(2.0) / np.maximum(d, 1e-12)
-    return (p - c[:, None]) * k[:, None, None], c, k
-
-
-def _fit_homographies(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _fit_homographies(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """Least-squares homographies (normalised DLT, Hartley and Zisserman alg. 4.2) of K point
-    sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2), all at once: ``(H, a, b)`` with H (K, 3, 3)
-    between the normalised sets ``a`` and ``b``."""
-    a, ca, ka = _normalise(src)
-    b, cb, kb = _normalise(dst)
+    sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2), P >= 4, all at once: (K, 3, 3), NaN where a
+    set is degenerate (its points coincide). Exact for four points in general position."""
+    def normalise(p):
+        c = p.mean(axis=1)
+        d = np.sqrt(((p - c[:, None]) ** 2).sum(axis=2)).mean(axis=1)
+        k = np.sqrt(2.0) / np.where(d > 1e-12, d, np.nan)
+        T = np.zeros((len(p), 3, 3))
+        T[:, 0, 0] = T[:, 1, 1] = k
+        T[:, 0, 2], T[:, 1, 2], T[:, 2, 2] = -k * c[:, 0], -k * c[:, 1], 1.0
+        return np.nan_to_num((p - c[:, None]) * k[:, None, None]), T
+
+    a, Ts = normalise(src)
+    b, Td = normalise(dst)
     K, P = a.shape[:2]
     A = np.zeros((K, 2 * P, 9))
     A[:, 0::2, 0:2], A[:, 0::2, 2] = a, 1.0
@@ -214,15 +197,15 @@ def _fit_homographies(src: np.ndarray, dst: np.ndarray) -> tuple[np.ndarray, np.
     A[:, 1::2, 3:5], A[:, 1::2, 5] = a, 1.0
     A[:, 1::2, 6:8], A[:, 1::2, 8] = -b[:, :, 1:2] * a, -b[:, :, 1]
     h = np.linalg.svd(A)[2][:, -1].reshape(K, 3, 3)
-    return h, (a, ca, ka), (b, cb, kb)
+    ok = np.isfinite(Td).all(axis=(1, 2)) & np.isfinite(Ts).all(axis=(1, 2))
+    H = np.full((K, 3, 3), np.nan)
+    H[ok] = np.linalg.solve(Td[ok], h[ok] @ Ts[ok])
+    return H
 
 
 def _fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
-    """The least-squares homography taking ``src`` (P, 2) to ``dst`` (P, 2) (pixels)."""
-    h, (_, ca, ka), (_, cb, kb) = _fit_homographies(src[None], dst[None])
-    Ts = np.array([[ka[0], 0.0, -ka[0] * ca[0, 0]], [0.0, ka[0], -ka[0] * ca[0, 1]], [0.0, 0.0, 1.0]])
-    Td = np.array([[kb[0], 0.0, -kb[0] * cb[0, 0]], [0.0, kb[0], -kb[0] * cb[0, 1]], [0.0, 0.0, 1.0]])
-    H = np.linalg.solve(Td, h[0] @ Ts)
+    """:func:`_fit_homographies` of one point set, (P, 2) to (P, 2); None where degenerate."""
+    H = _fit_homographies(src[None], dst[None])[0]
     return H if np.isfinite(H).all() else None
 
 
@@ -230,12 +213,10 @@ def _homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
     (in ``dst``'s units) by which the least-squares homography misses a point; inf where none
     is fitted."""
-    h, (a, _, _), (b, _, kb) = _fit_homographies(src, dst)
-    K, P = a.shape[:2]
-    q = np.einsum("kij,kpj->kpi", h, np.concatenate([a, np.ones((K, P, 1))], axis=2))
+    H = _fit_homographies(src, dst)
+    q = np.einsum("kij,kpj->kpi", H, np.concatenate([src, np.ones(src.shape[:2] + (1,))], axis=2))
     with np.errstate(divide="ignore", invalid="ignore"):
-        fit = q[:, :, :2] / q[:, :, 2:]
-    miss = np.hypot(*(fit - b).transpose(2, 0, 1)).max(axis=1) / kb
+        miss = np.hypot(*(q[:, :, :2] / q[:, :, 2:] - dst).transpose(2, 0, 1)).max(axis=1)
     return np.where(np.isfinite(miss), miss, np.inf)
 
 
@@ -284,18 +265,9 @@ def _read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary) -> tuple
     K = len(quads)
     n = d.marker_size + 2
     unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
-    A = np.zeros((K, 8, 8))
-    A[:, 0::2, 0:2] = unit
-    A[:, 0::2, 2] = 1.0
-    A[:, 0::2, 6:8] = -quads[:, :, :1] * unit
-    A[:, 1::2, 3:5] = unit
-    A[:, 1::2, 5] = 1.0
-    A[:, 1::2, 6:8] = -quads[:, :, 1:2] * unit
-    rhs = quads.reshape(K, 8)
-    ok = np.abs(np.linalg.det(A)) > 1e-12
-    h = np.zeros((K, 8))
-    h[ok] = np.linalg.solve(A[ok], rhs[ok][:, :, None])[:, :, 0]
-    Hs = np.concatenate([h, np.ones((K, 1))], axis=1).reshape(K, 3, 3)
+    Hs = _fit_homographies(np.broadcast_to(unit, quads.shape), quads)
+    ok = np.isfinite(Hs).all(axis=(1, 2))
+    Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
     ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
     cy, cx = np.mgrid[0:n, 0:n]
     cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
@@ -410,8 +382,12 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
     ids = [m for m, c in found.items() if m < len(ms) and len(c) == 1]
-    homs = {m: _homography(obj[m], found[m][0]) for m in ids}
-    ids = [m for m in ids if homs[m] is not None]
+    if ids:
+        hs = _fit_homographies(obj[ids], np.stack([found[m][0] for m in ids]))
+        homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
+        ids = [m for m in ids if m in homs]
+    else:
+        homs = {}
     side_px = {m: np.sqrt(abs(0.5 * np.sum(found[m][0][:, 0] * np.roll(found[m][0][:, 1], -1)
                                          - np.roll(found[m][0][:, 0], -1) * found[m][0][:, 1])))
                * board.square / board.marker for m in ids}

@@ -335,9 +335,8 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     out[keep[good]] = refined[ok][good]
     sigma[keep[good]] = sig[ok][good]
     if _bent_fraction(out.reshape(rows, cols, 2)) > 0.1:
-        return Detection(False, np.full_like(c, np.nan), np.full(len(c), np.nan), r,
-                               f"not found: the lattice found at 1/{factor} resolution is inconsistent at full "
-                               "resolution")
+        return Detection.not_found(len(c), f"not found: the lattice found at 1/{factor} resolution is "
+                                           "inconsistent at full resolution", r)
     found = int(np.isfinite(out).all(axis=1).sum())
     return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
                            f"refined at full resolution (window {r} px)")
@@ -347,10 +346,9 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
     """Steps 1-4 of :func:`detect_corners` on one resolution."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
-    empty = np.full((n_corners, 2), np.nan)
 
     def fail(msg: str, window: int = 0) -> Detection:
-        return Detection(False, empty.copy(), np.full(n_corners, np.nan), window, msg)
+        return Detection.not_found(n_corners, msg, window)
 
     s = np.empty_like(grey)
     detect_kernels.gaussian_blur(grey, _SIGMA, s)
@@ -397,9 +395,9 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
     passed = sorted(((b, d.n_found, -i) for i, (d, b) in enumerate(results) if d.found), reverse=True)
     if len(passed) > 1 and passed[0][0] == passed[1][0]:
         det = results[-passed[0][2]][0]
-        return Detection(False, empty.copy(), np.full(n_corners, np.nan), det.window_px,
-                               f"not found: {len(passed)} patterns in the image pass as the {cols}x{rows} board, "
-                               "with their borders seen on as many sides (another board in view?)")
+        return Detection.not_found(n_corners, f"not found: {len(passed)} patterns in the image pass as the "
+                                              f"{cols}x{rows} board, with their borders seen on as many sides "
+                                              "(another board in view?)", det.window_px)
     return results[-passed[0][2]][0] if passed else results[0][0]
 
 
@@ -410,10 +408,9 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     was seen."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
-    empty = np.full((n_corners, 2), np.nan)
 
     def fail(msg: str, window: int = 0) -> tuple[Detection, int]:
-        return Detection(False, empty.copy(), np.full(n_corners, np.nan), window, msg), 0
+        return Detection.not_found(n_corners, msg, window), 0
 
     spacing = _lattice_spacing(g, pts)
     r = int(np.clip(round(spacing / 11.0), 2, 5))
@@ -522,7 +519,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
             g = np.stack([cols - 1 - g[:, 0], rows - 1 - g[:, 1]], axis=-1)
     if agree < 0.8:
         return fail(f"not found: the corners' labels disagree with the squares' colours ({agree:.0%} agree)", r)
-    out = empty.copy()
+    out = np.full((n_corners, 2), np.nan)
     sigma = np.full(n_corners, np.nan)
     flat = g[:, 1] * cols + g[:, 0]
     out[flat] = q
