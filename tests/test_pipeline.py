@@ -102,3 +102,20 @@ def test_the_report_leaves_the_callers_matplotlib_backend_alone(tmp_path):
     """)
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
     assert out == ["svg", "False"]
+
+
+def test_bad_arguments_are_named(photos, tmp_path):
+    from camkit.calib import calibrate_detections
+    from camkit.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="board: expected a camkit target"):
+        calibrate_files(photos, (7, 5))
+    with pytest.raises(ParameterError, match="paths: no images given"):
+        calibrate_files([], BOARD)
+    with pytest.raises(ParameterError, match="model: expected a camkit camera model"):
+        undistort_files(photos[:1], "camera.json", tmp_path / "u")
+    with pytest.raises(ParameterError, match="detections: expected a non-empty list of Detection"):
+        calibrate_detections([], BOARD, width=640, height=480)
+    with pytest.raises(ParameterError, match="detections: expected a non-empty list of Detection"):
+        calibrate_detections([np.zeros((35, 2))], BOARD, width=640, height=480)
+    assert not (tmp_path / "u").exists()

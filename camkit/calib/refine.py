@@ -23,6 +23,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from camkit._kernels import calib as calib_kernels
+from camkit._validate import as_positive_float, as_positive_int, check_choice
 from camkit.errors import EstimationError, ParameterError
 
 __all__ = ["LMOptions", "Linearization", "Problem", "RefineReport", "robust_weights", "solve"]
@@ -94,6 +95,15 @@ class LMOptions:
     robust_scale: float = 1.0
     damping: float = 1e-6
     covariance: bool = True
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "max_iterations", as_positive_int(self.max_iterations, "max_iterations"))
+        for name in ("tolerance", "robust_scale", "damping"):
+            object.__setattr__(self, name, as_positive_float(getattr(self, name), name))
+        if self.robust_loss is not None:
+            check_choice(self.robust_loss, ("huber", "cauchy"), "robust_loss")
+        if not isinstance(self.covariance, bool):
+            raise ParameterError(f"covariance: expected True or False, got {self.covariance!r}")
 
 
 @dataclass(frozen=True, slots=True, eq=False)

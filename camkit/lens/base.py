@@ -24,6 +24,7 @@ import numpy as np
 from camkit._registry import Registry
 from camkit._validate import (
     as_finite_float,
+    as_matrix,
     as_points,
     as_positive_float,
     as_positive_int,
@@ -180,13 +181,23 @@ class CameraModel(abc.ABC):
         whose valid region must be searched (Brown-Conrady) establishes it only as far out as
         these points reach, a cheaper scan. The model itself is unchanged; the returned one
         serves these points only (a model to keep is built fresh)."""
+        as_points(points_cam, 3, "points_cam", finite=False)
         return self
 
-    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
-        """Fill ``out`` (H, W, 2) with this model's pixels for the rays ``M @ (u, v, 1)`` of every
-        output pixel ``(u, v)``, in one fused kernel, and return True; False where the model
-        has no such kernel (a resampling map then projects row bands through :meth:`project`).
-        """
+    def map_from_rays(self, M: Any, out: np.ndarray) -> bool:
+        """Fill ``out`` (H, W, 2; float32 or float64, C-contiguous) with this model's pixels
+        for the rays ``M @ (u, v, 1)`` of every output pixel ``(u, v)``, in one fused kernel,
+        and return True; False where the model has no such kernel (a resampling map then
+        projects row bands through :meth:`project`)."""
+        m = as_matrix(M, (3, 3), "M")
+        if not (isinstance(out, np.ndarray) and out.ndim == 3 and out.shape[2] == 2
+                and out.dtype in (np.float32, np.float64) and out.flags.c_contiguous and out.flags.writeable):
+            got = f"{out.dtype} {out.shape}" if isinstance(out, np.ndarray) else type(out).__name__
+            raise ShapeError(f"out: expected a writeable C-contiguous float32 or float64 array (H, W, 2), got {got}")
+        return self._map_from_rays(m, out)
+
+    def _map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+        """The fused kernel of :meth:`map_from_rays` (arguments checked); models with one override it."""
         return False
 
     def to_dict(self) -> dict[str, Any]:

@@ -11,6 +11,7 @@ import numpy as np
 
 from camkit._kernels import brown_conrady as brown_conrady_kernels
 from camkit._kernels import maps as maps_kernels
+from camkit._validate import as_points
 from camkit.lens.base import CameraModel, register_model
 
 __all__ = ["BrownConrady"]
@@ -121,7 +122,7 @@ class BrownConrady(CameraModel):
         instead of the default scan (64 x 512 directions and steps over three times the image
         corner's radius): an optimiser evaluates its trial models a dozen times per fit and
         needs the model one-to-one only as far as its points reach."""
-        pts = np.asarray(points_cam, dtype=np.float64).reshape(-1, 3)
+        pts = as_points(points_cam, 3, "points_cam", finite=False).reshape(-1, 3)
         z = pts[:, 2]
         with np.errstate(divide="ignore", invalid="ignore"):
             r = np.hypot(pts[:, 0], pts[:, 1]) / z
@@ -134,7 +135,7 @@ class BrownConrady(CameraModel):
             brown_conrady_kernels.valid_radius(coeffs, 1.02 * float(r.max()), 32, 64))})
         return out
 
-    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+    def _map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
         maps_kernels.pinhole_to_brown_conrady(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
                                      self._r2_valid(), out)
         return True

@@ -79,7 +79,7 @@ class KannalaBrandt(CameraModel):
         return cls(fx=400.0, fy=400.2, cx=641.3, cy=478.2, k1=0.02, k2=-0.005, k3=0.001, k4=-0.0002,
                    width=1280, height=960)
 
-    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+    def _map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
         maps_kernels.pinhole_to_kannala_brandt(np.ascontiguousarray(M, dtype=np.float64), self._intr(), self._coeffs(),
                                       self.valid_theta, out)
         return True

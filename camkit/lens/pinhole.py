@@ -78,7 +78,7 @@ class Pinhole(CameraModel):
         """1280x960, fx = 1000 px (4.8 um pixels behind a 4.8 mm lens)."""
         return cls(fx=1000.0, fy=1000.5, cx=641.3, cy=478.2, width=1280, height=960)
 
-    def map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
+    def _map_from_rays(self, M: np.ndarray, out: np.ndarray) -> bool:
         maps_kernels.pinhole_to_pinhole(np.ascontiguousarray(M, dtype=np.float64), self._intr(), out)
         return True
 

@@ -79,7 +79,10 @@ class ArucoDictionary:
         """:meth:`identify` for ``(K, n, n)`` observed bits at once: ``(ids, turns, errors)``,
         each (K,), id -1 where no code is within ``max_correction_bits``."""
         b = np.asarray(bits, dtype=np.float64)
-        K, n = b.shape[0], self.marker_size
+        n = self.marker_size
+        if b.ndim != 3 or b.shape[1:] != (n, n):
+            raise ParameterError(f"bits: expected shape (K, {n}, {n}), got {b.shape}")
+        K = b.shape[0]
         turned = np.stack([np.rot90(b, -k, axes=(1, 2)).reshape(K, -1) for k in range(4)], axis=1)  # undo k turns
         codes = self.codes.reshape(len(self.codes), -1).astype(np.float64)
         # Hamming distance as products: bits that agree are 1*1 or 0*0.

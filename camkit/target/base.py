@@ -23,6 +23,8 @@ from typing import Any, ClassVar, Self, TypeVar
 import numpy as np
 
 from camkit._registry import Registry
+from camkit._validate import as_positive_float
+from camkit.errors import ParameterError
 
 __all__ = ["TARGETS", "Detection", "Sheet", "Target", "get_target", "register_target"]
 
@@ -78,6 +80,19 @@ class Detection:
         return cls(False, np.full((n_points, 2), np.nan), np.full(n_points, np.nan), window_px, message)
 
 
+#: The largest raster side :meth:`Sheet.raster` and :meth:`Sheet.coverage` make (pixels).
+MAX_RASTER_SIDE = 32768
+
+
+def _density(px_per_m: Any, extent: tuple[float, float, float, float]) -> float:
+    d = as_positive_float(px_per_m, "px_per_m")
+    side = max(extent[2] - extent[0], extent[3] - extent[1]) * d
+    if side > MAX_RASTER_SIDE:
+        raise ParameterError(f"px_per_m: expected at most {MAX_RASTER_SIDE} pixels a side, got {side:.0f} "
+                             f"({d:g} px/m over the sheet's {max(extent[2] - extent[0], extent[3] - extent[1]):g} m)")
+    return d
+
+
 @dataclass(frozen=True, slots=True, eq=False)
 class Sheet:
     """A target's printed face: black axis-aligned rectangles on white paper.
@@ -102,6 +117,7 @@ class Sheet:
         pixel grid aligned with the extent's top-left (pixel ``(i, j)`` covers ``u_min + [j,
         j + 1] / px_per_m``). Rectangle edges are rounded to whole pixels: choose a density
         where the marks' sizes are whole numbers of pixels for an exact raster."""
+        px_per_m = _density(px_per_m, self.extent)
         u0, v0, u1, v1 = self.extent
         W = max(1, round((u1 - u0) * px_per_m))
         H = max(1, round((v1 - v0) * px_per_m))
@@ -118,6 +134,7 @@ class Sheet:
         :meth:`raster`: exact box-filtered area, so an edge between texel boundaries keeps its
         position (a texture that rounds it to a boundary moves corners by up to half a
         texel)."""
+        px_per_m = _density(px_per_m, self.extent)
         u0, v0, u1, v1 = self.extent
         W = max(1, round((u1 - u0) * px_per_m))
         H = max(1, round((v1 - v0) * px_per_m))

@@ -106,3 +106,13 @@ def test_a_start_with_no_finite_cost_is_refused_in_words():
     p.b[0, 0] = np.nan
     with pytest.raises(EstimationError, match="start: the starting point"):
         solve(p, (np.zeros(3), np.zeros((5, 2))))
+
+
+@pytest.mark.parametrize("kwargs,match", [
+    ({"max_iterations": 0}, "max_iterations"), ({"tolerance": -1.0}, "tolerance"), ({"damping": float("nan")}, "damping"),
+    ({"robust_loss": "l1"}, "robust_loss: expected one of"), ({"robust_scale": 0.0}, "robust_scale"),
+    ({"covariance": "yes"}, "covariance: expected True or False"),
+])
+def test_options_are_checked(kwargs, match):
+    with pytest.raises(ParameterError, match=match):
+        LMOptions(**kwargs)

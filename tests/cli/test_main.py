@@ -460,3 +460,12 @@ def test_calibrate_target_refusals(tmp_path, capsys, args, message):
         code = main(["calibrate", str(img), *args, "-o", str(tmp_path / "c.json")])
         assert code == 1
     assert message in capsys.readouterr().err
+
+
+def test_charuco_board_needs_its_sizes(tmp_path, capsys):
+    assert main(["board", "--target", "charuco", "--squares", "6x5", "--square", "30mm", "-o",
+                 str(tmp_path / "c.pdf")]) == 1
+    assert "--marker: a ChArUco board needs --squares, --square and --marker" in capsys.readouterr().err
+    assert main(["board", "--square", "30mm", "-o", str(tmp_path / "c.pdf")]) == 1
+    assert "--inner, --square: a checkerboard needs both" in capsys.readouterr().err
+    assert not (tmp_path / "c.pdf").exists()

@@ -218,3 +218,16 @@ def test_fused_map_agrees_with_projecting_the_rays(model):
     np.testing.assert_allclose(out[ok], ref[ok], atol=1e-6)  # float64 throughout: rounding only
     assert np.array_equal(np.isfinite(out).all(axis=-1), ok)
     np.testing.assert_allclose(reproject_map(model, dst, dtype=np.float64)[ok], ref[ok], atol=1e-6)
+
+
+def test_fused_map_and_trial_model_refuse_bad_arguments(model):
+    with pytest.raises(ShapeError, match=r"M: expected shape \(3, 3\)"):
+        model.map_from_rays(np.eye(2), np.empty((4, 4, 2)))
+    with pytest.raises(ShapeError, match="out: expected a writeable C-contiguous float32 or float64 array"):
+        model.map_from_rays(np.eye(3), np.empty((4, 4, 2), dtype=np.int32))
+    with pytest.raises(ShapeError, match="out: expected"):
+        model.map_from_rays(np.eye(3), np.empty((4, 4, 3)))
+    with pytest.raises(ShapeError, match="points_cam"):
+        model.for_points(np.zeros((5, 2)))
+    with pytest.raises(ShapeError, match=r"K: expected shape \(3, 3\)"):
+        type(model).initial_guess(np.eye(2), width=640, height=480)

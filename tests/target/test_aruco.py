@@ -44,3 +44,8 @@ def test_bad_input_is_named():
         get_dictionary("DICT_5X5_101")
     with pytest.raises(ParameterError, match=r"bits: expected shape \(5, 5\)"):
         get_dictionary("DICT_5X5_100").identify(np.zeros((4, 4)))
+
+
+def test_identify_many_names_a_bad_shape():
+    with pytest.raises(ParameterError, match=r"bits: expected shape \(K, 6, 6\), got \(6, 6\)"):
+        get_dictionary("DICT_6X6_250").identify_many(np.zeros((6, 6)))

@@ -136,3 +136,21 @@ def test_nothing_but_another_dictionary_is_not_found_with_a_reason():
     img, _ = render_target(CAM, _view(other, CAM, [0.2, 0.1, 0.0]), other)
     det = Charuco(5, 7, 0.03, 0.02, "DICT_5X5_100").detect(img)
     assert not det.found and "no marker of the board" in det.message
+
+
+def test_detect_refuses_what_is_not_an_image_and_finds_nothing_in_tiny_or_blank_ones():
+    from camkit.errors import ShapeError
+
+    b = Charuco.example()
+    with pytest.raises(ShapeError, match="image: expected shape"):
+        b.detect(np.zeros(3))
+    with pytest.raises(ShapeError, match="image: expected dtype"):
+        b.detect(np.zeros((10, 10), bool))
+    for img in (np.zeros((1, 1), np.uint8), np.zeros((5, 7)), np.full((40, 40), np.nan)):
+        det = b.detect(img)
+        assert not det.found and det.message.startswith("not found")
+
+
+def test_render_target_names_a_bad_target():
+    with pytest.raises(ParameterError, match="board: expected a camkit target"):
+        render_target(CAM, Pose.identity(), (5, 7))

@@ -50,3 +50,23 @@ def test_bad_paper_is_refused_and_nothing_written(tmp_path, paper, match):
     with pytest.raises(CamkitError, match=match):
         write_board(tmp_path / "b.pdf", board, paper=paper)
     assert not (tmp_path / "b.pdf").exists()
+
+
+@pytest.mark.parametrize("density,match", [(0.0, "px_per_m: expected a positive"), (float("nan"), "px_per_m"),
+                                           (1e9, "px_per_m: expected at most 32768 pixels a side")])
+def test_sheet_rasters_refuse_a_bad_density(density, match):
+    sheet = Checkerboard(9, 6, 0.025).sheet()
+    for fn in (sheet.raster, sheet.coverage):
+        with pytest.raises(CamkitError, match=match):
+            fn(density)
+
+
+def test_coverage_is_the_exact_area_of_each_mark():
+    """A 1 mm square at 0.25 mm offsets, 1 texel per mm: coverages 0.75 x 0.75 etc., summing
+    to the square's area in texels (1)."""
+    from camkit.target import Sheet
+
+    sheet = Sheet((0.0, 0.0, 0.003, 0.003), np.array([[0.00125, 0.00125, 0.00225, 0.00225]]), "")
+    cov = sheet.coverage(1000.0)
+    np.testing.assert_allclose(cov[1:3, 1:3], [[0.5625, 0.1875], [0.1875, 0.0625]])
+    assert cov.sum() == pytest.approx(1.0)
