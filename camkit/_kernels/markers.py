@@ -35,6 +35,22 @@ def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) 
             out[y, x] = g[y, x] < tot / ((y1 - y0) * (x1 - x0)) - c
 
 
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def cross_filter(src: np.ndarray, dilate: bool, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Erosion (``dilate`` False: a pixel stays set where it and its four neighbours are set)
+    or dilation (set where it or one of its four neighbours is) of ``src`` by the 3 x 3 cross;
+    off the image counts as unset."""
+    H, W = src.shape
+    for y in prange(H):
+        for x in range(W):
+            a = src[y, x]
+            b = src[y - 1, x] if y > 0 else False
+            c = src[y + 1, x] if y < H - 1 else False
+            d = src[y, x - 1] if x > 0 else False
+            e = src[y, x + 1] if x < W - 1 else False
+            out[y, x] = (a or b or c or d or e) if dilate else (a and b and c and d and e)
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
     while parent[a] != a:

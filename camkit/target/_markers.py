@@ -1,0 +1,279 @@
+"""The marker machinery the coded targets share (ChArUco, AprilGrid): dark quads of an
+adaptive threshold, their cells read as codes of a dictionary, markers confirmed against the
+board's layout by their neighbours, and X-junctions refined at their saddle points."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from camkit._kernels import detect as detect_kernels
+from camkit._kernels import markers as markers_kernels
+from camkit.target._homography import fit_homographies, homography_misfit
+from camkit.target.aruco import ArucoDictionary
+from camkit.target.checkerboard import _half, _saddle_fit, _sample
+
+
+def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    """The saddle fit (window ``r``) of each point on the image smoothed by ``sigma``, the
+    smoothing computed only on a patch around each point (the patches side by side in one
+    mosaic): enough for the window, its bicubic support and the fit's moves."""
+    half = r + 9
+    side = 2 * half + 1
+    n = len(pts)
+    per_row = max(1, int(np.ceil(np.sqrt(n))))
+    origin = np.floor(pts).astype(np.int64) - half
+    tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
+    mosaic = np.zeros((side * ((n + per_row - 1) // per_row), side * per_row))
+    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, sigma, mosaic)
+    shift = tile - origin
+    q, sg = _saddle_fit(mosaic, pts + shift, r)
+    return q - shift, sg
+
+
+def is_x_corner(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Which points are X-junctions: on a circle of radius ``rho`` (per point, pixels) the shade
+    crosses its mean four times, with contrast, and is point-symmetric (opposite quadrants
+    alike), as step 1 of the checkerboard detector asks; a marker's own corner or a junction
+    of its bits is not."""
+    ang = np.arange(32) * 2 * np.pi / 32
+    v = _sample(grey, pts[:, :1] + rho[:, None] * np.cos(ang), pts[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
+    sign = v > v.mean(axis=1, keepdims=True)
+    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
+    contrast = v.max(axis=1) - v.min(axis=1)
+    sym = np.abs(v - np.roll(v, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
+    return (changes == 4) & (contrast > 0.15) & (sym < 0.25)
+
+
+def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary,
+                 border: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
+    where a quad holds no code. All quads at once: their homographies from the unit square,
+    one sampling of every cell's 3 x 3 middle points and of the white margin around each. The
+    code's cells are inside a black border ``border`` cells wide (1 for ArUco, 2 for Kalibr's
+    AprilTags)."""
+    K = len(quads)
+    n = d.marker_size + 2 * border
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    Hs = fit_homographies(np.broadcast_to(unit, quads.shape), quads)
+    ok = np.isfinite(Hs).all(axis=(1, 2))
+    Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
+    ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
+    cy, cx = np.mgrid[0:n, 0:n]
+    cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
+    # The white margin around the marker: half a cell outside each side's middle.
+    ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
+    pts = np.concatenate([cells, ring])
+    p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate quad's rows: not read below
+        px = p[:, :, :2] / p[:, :, 2:]
+    vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
+                   "bilinear").reshape(K, len(pts))
+    cell = vals[:, :n * n * 9].reshape(K, n, n, 9).mean(axis=3)
+    white = np.median(vals[:, n * n * 9:], axis=1)
+    inner = np.zeros((n, n), dtype=bool)
+    inner[border:-border, border:-border] = True
+    rim = cell[:, ~inner]
+    black = np.median(rim, axis=1)
+    t = 0.5 * (white + black)
+    good = ok & np.isfinite(white) & (white - black > 0.15) & (np.mean(rim < t[:, None], axis=1) >= 0.85)
+    ids = np.full(K, -1, dtype=np.int64)
+    turns = np.zeros(K, dtype=np.int64)
+    if good.any():
+        bits = (cell[good][:, border:-border, border:-border] > t[good][:, None, None]).astype(np.uint8)
+        ids[good], turns[good], _ = d.identify_many(bits)
+    return ids, turns
+
+
+def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarray:
+    """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
+    threshold at three window sizes (a quad found again at another window kept once). With
+    ``opening``, the dark mask is opened by the 3 x 3 cross first, which parts regions that
+    touch at a corner (an AprilGrid's tag and its corner squares) and keeps a border two cells
+    wide at two pixels a cell."""
+    H, W = g.shape
+    dark = np.empty((H, W), dtype=np.bool_)
+    opened = np.empty((H, W), dtype=np.bool_) if opening else dark
+    labels = np.empty((H, W), dtype=np.int64)
+    out: list[np.ndarray] = []
+    ii = np.empty((H + 1, W + 1))
+    markers_kernels.integral(g, ii)
+    for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}):
+        markers_kernels.dark_mask(g, ii, r, 0.03, dark)
+        if opening:
+            markers_kernels.cross_filter(dark, False, opened)
+            markers_kernels.cross_filter(opened, True, dark)
+        n = markers_kernels.label4(dark, labels)
+        if n == 0:
+            continue
+        stats = np.empty((n, 5), dtype=np.int64)
+        quads = np.zeros((n, 4, 2))
+        markers_kernels.region_quads(labels, n, (min_side * min_side) // 2, (H * W) // 4, min_side, stats, quads)
+        area = stats[:, 0].astype(np.float64)
+        w = stats[:, 3] - stats[:, 1] + 1
+        h = stats[:, 4] - stats[:, 2] + 1
+        q = quads
+        shoelace = 0.5 * np.sum(q[:, :, 0] * np.roll(q[:, :, 1], -1, axis=1)
+                                - np.roll(q[:, :, 0], -1, axis=1) * q[:, :, 1], axis=1)
+        # A quad, not a triangle or a blob: its four corners span most of the region's area.
+        ok = (area > 0) & (np.maximum(w, h) <= 8 * np.minimum(w, h)) & (np.abs(shoelace) >= 0.6 * area)
+        q = np.where((shoelace > 0)[:, None, None], q, q[:, ::-1])[ok]
+        out.extend(q)
+    if not out:
+        return np.zeros((0, 4, 2))
+    # One quad per marker: the windows find most markers more than once.
+    allq = np.stack(out)
+    centre = allq.mean(axis=1)
+    span = np.ptp(allq, axis=1).max(axis=1)
+    order = np.lexsort((centre[:, 1], centre[:, 0]))
+    keep = np.ones(len(allq), dtype=bool)
+    for i, a in enumerate(order):  # neighbours in x order only: a short scan per quad
+        if not keep[a]:
+            continue
+        for b in order[i + 1:]:
+            if centre[b, 0] - centre[a, 0] > 0.1 * span[a]:
+                break
+            if keep[b] and np.abs(allq[b] - allq[a]).max() < 0.05 * span[a] + 1.0:
+                keep[b] = False
+    return allq[keep]
+
+
+#: Markers are looked for first at a level whose longer side is at most this (2x2 means), then
+#: finer where that level reads too little; the corners are refined on the full image.
+MARKER_LEVEL_SIDE = 1600
+
+
+def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1) -> tuple[dict[int, list[np.ndarray]], int]:
+    """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
+    corners of every quad that holds it, (4, 2) full-image pixels in the code's order
+    (top-left, top-right, bottom-right, bottom-left of the marker as the dictionary draws it),
+    and the factor of the finest pyramid level read (the scale of the detail that is left).
+
+    Quads (:func:`find_quads`) read as codes (:func:`read_markers`), from the coarsest level of
+    a 2x2-mean pyramid (longer side at most :data:`MARKER_LEVEL_SIDE`) down: a finer level is
+    read where the coarser gave fewer than two markers or markers of under 2 px a cell across
+    (bits blur together there); a finer level's reading replaces a coarser one that read no
+    more."""
+    levels = [(full, 1)]
+    while max(levels[-1][0].shape) > MARKER_LEVEL_SIDE:
+        levels.append((_half(levels[-1][0]), levels[-1][1] * 2))
+    n_cells = d.marker_size + 2 * border
+    found: dict[int, list[np.ndarray]] = {}
+    for g, f in reversed(levels):
+        quads = find_quads(g, 2 * n_cells, opening=border >= 2)  # two pixels a cell at least
+        codes, turns = (read_markers(g, quads, d, border) if len(quads)
+                        else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
+        level: dict[int, list[np.ndarray]] = {}
+        for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
+            if code < 0:
+                continue
+            # The code's corner j is the quad's corner (j - turns) % 4.
+            corners = (quad[(np.arange(4) - k) % 4] + 0.5) * f - 0.5
+            span = float(np.ptp(corners, axis=0).max())
+            same = level.setdefault(int(code), [])
+            # One marker read at two windows: the same place (its centre within half its span).
+            if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
+                same.append(corners)
+        if len(level) >= len(found):
+            found = level  # the finer level's corners where it reads as much
+        # A marker's narrowest side per cell, at this level.
+        cells = [np.hypot(*np.diff(np.vstack([c[0], c[0][:1]]), axis=0).T).min() / f / n_cells
+                 for c in level.values()]
+        if len(level) >= 2 and np.median(cells) >= 2.0:
+            break
+    return found, f
+
+
+def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,
+                    factor: int) -> tuple[list[int], dict[int, np.ndarray], dict[int, float]]:
+    """The board's markers among ``found`` (:func:`find_markers`) that a neighbour confirms.
+
+    ``obj`` (M, 4, 2): each of the board's markers' corners in the target frame, in the code's
+    order; ``grid`` (M, 2): its integer place on the board's layout; ``step``: the layout's
+    pitch over the marker's side. An id the board does not have is another board's; an id seen
+    twice is dropped. Every pair of markers within two places of each other is tested: one
+    homography through both markers' eight corners fits (within 15 % of a pitch, 2 px at the
+    level read at least) where both are where the layout puts them (perspective and distortion
+    are smooth over two places); a marker is confirmed by at least one pair that fits and more
+    that fit than do not.
+
+    Returns (confirmed ids, each confirmed marker's homography target frame -> image, each
+    marker's pitch in pixels)."""
+    ids = [m for m, c in found.items() if m < len(obj) and len(c) == 1]
+    homs: dict[int, np.ndarray] = {}
+    if ids:
+        hs = fit_homographies(obj[ids], np.stack([found[m][0] for m in ids]))
+        homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
+        ids = [m for m in ids if m in homs]
+    pitch = {m: np.sqrt(abs(0.5 * np.sum(found[m][0][:, 0] * np.roll(found[m][0][:, 1], -1)
+                                       - np.roll(found[m][0][:, 0], -1) * found[m][0][:, 1]))) * step
+             for m in ids}
+    agree = dict.fromkeys(ids, 0)
+    disagree = dict.fromkeys(ids, 0)
+    pairs = [(m, j) for a, m in enumerate(ids) for j in ids[a + 1:] if np.abs(grid[j] - grid[m]).max() <= 2]
+    if pairs:
+        src = np.stack([np.concatenate([obj[m], obj[j]]) for m, j in pairs])
+        dst = np.stack([np.concatenate([found[m][0], found[j][0]]) for m, j in pairs])
+        worst = homography_misfit(src, dst)
+        for (m, j), w in zip(pairs, worst, strict=True):
+            tol = max(2.0 * factor, 0.15 * min(pitch[m], pitch[j]))
+            for a in (m, j):
+                if w < tol:
+                    agree[a] += 1
+                else:
+                    disagree[a] += 1
+    confirmed = [m for m in ids if agree[m] >= 1 and agree[m] > disagree[m]]
+    return confirmed, {m: homs[m] for m in confirmed}, pitch
+
+
+def drop_poor_fits(out: np.ndarray, sig: np.ndarray) -> None:
+    """Clear (NaN) the corners whose saddle fit's sigma is over twice the median of the others."""
+    good = np.isfinite(sig)
+    if good.any():
+        bad = good & (sig > 2.0 * np.median(sig[good]))
+        out[bad] = np.nan
+        sig[bad] = np.nan
+
+
+def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.ndarray) -> np.ndarray:
+    """Which of the found points (target-frame ``obj`` (N, 2), image ``pts`` (N, 2)) agree with
+    their neighbours: each against the quadratic map target -> image fitted (least squares) on
+    the other points within ``radius`` of it in the target frame (an affine map where fewer than
+    eight of them span it), missing it by at most ``tol`` (N,) pixels. The worst offender in its
+    own neighbourhood goes first, round by round, so that one wrong point does not condemn its
+    neighbours; a point with fewer than four neighbours cannot be checked and goes. Two points
+    at one place (one X-junction given two labels) both go."""
+    n = len(obj)
+    keep = np.ones(n, dtype=bool)
+    if n == 0:
+        return keep
+    d = np.hypot(*(pts[:, None, :] - pts[None, :, :]).transpose(2, 0, 1))
+    np.fill_diagonal(d, np.inf)
+    keep &= d.min(axis=1) > 0.5 * tol
+    rel = (obj[None, :, :] - obj[:, None, :]) / radius  # (k, j, 2): j seen from k
+    near = (np.abs(rel).max(axis=2) <= 1.0) & ~np.eye(n, dtype=bool)
+    terms = np.stack([np.ones((n, n)), rel[..., 0], rel[..., 1], rel[..., 0] ** 2, rel[..., 0] * rel[..., 1],
+                      rel[..., 1] ** 2], axis=-1)
+    for _ in range(8):
+        w = (near & keep[None, :]).astype(np.float64)
+        count = w.sum(axis=1)
+        res = np.full(n, np.inf)
+        for nt, enough in ((6, count >= 8), (3, (count >= 4) & (count < 8))):
+            k = np.flatnonzero(enough & keep)
+            if not len(k):
+                continue
+            A = terms[k][:, :, :nt] * w[k][:, :, None]
+            M = np.einsum("kji,kjl->kil", A, terms[k][:, :, :nt])
+            b = np.einsum("kji,jc->kic", A, pts)
+            ok = np.linalg.cond(M) < 1e10
+            c = np.full((len(k), nt, 2), np.nan)
+            c[ok] = np.linalg.solve(M[ok], b[ok])
+            res[k] = np.hypot(*(c[:, 0, :] - pts[k]).T)
+        bad = keep & ~(res <= tol)
+        if not bad.any():
+            break
+        ratio = np.where(bad, res / tol, 0.0)
+        ratio[~np.isfinite(ratio)] = 1e300
+        # The worst within its own neighbourhood goes.
+        worst = bad & (ratio >= np.max(np.where(near & keep[None, :], ratio[None, :], 0.0), axis=1))
+        keep &= ~worst
+    return keep
