@@ -326,7 +326,10 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: np.ndarray, keep: np.ndarray) 
                 k = G[a, b]
                 if k < 0:
                     continue
-                if local_fit(G, q, a, b, 2, True, 4, coef) == 0:
+                # The nearest ring where it pins a quadratic down (seven or more of the eight
+                # neighbours: it follows a fisheye's bend, which a quadratic over two steps
+                # does not), else the corners within two steps.
+                if local_fit(G, q, a, b, 1, True, 7, coef) != 2 and local_fit(G, q, a, b, 2, True, 4, coef) == 0:
                     res[k] = np.inf
                 else:
                     res[k] = math.hypot(coef[0, 0] - q[k, 0], coef[0, 1] - q[k, 1])

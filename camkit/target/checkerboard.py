@@ -11,6 +11,7 @@ from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
 from camkit.errors import ParameterError
+from camkit.target._homography import fit_homography
 from camkit.target.base import Detection, Sheet, Target, register_target
 
 __all__ = ["Checkerboard", "detect_corners"]
@@ -224,11 +225,15 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        window's half-size an eleventh of the corner spacing (2 to 5 px); each corner's sigma
        from the fit's residuals. A corner whose sigma is over twice the board's median
        is not a clean junction (an occluder's edge, glare) and is dropped.
-    4. Verification: every corner against the quadratic map fitted on its neighbours within
-       two steps, itself left out; corners that miss it by more than 8 % of the spacing
-       (0.6 px at least), or that cannot be checked, are dropped, worst first; the largest
-       group of corners linked as neighbours is kept (a group across a whole hidden row is
-       not joined: nothing checks the count across it).
+    4. Verification: every corner against the quadratic map fitted on its neighbours (the
+       eight around it where seven or more are there, else those within two steps), itself
+       left out; corners that miss it by more than 8 % of the spacing (0.6 px at least), or
+       that cannot be checked, are dropped, worst first. A corner dropped there is put back
+       where a model of the whole lattice (a homography and radial distortion, fitted on the
+       corners that passed and trusted only where it predicts its own outer corners left out)
+       predicts it within the same tolerance: a board near a fisheye's rim bends more than a
+       quadratic follows. The largest group of corners linked as neighbours is kept (a group
+       across a whole hidden row is not joined: nothing checks the count across it).
     5. Labels: the lattice is made right-handed in the image (the printed face is seen). A
        lattice the board's size is labelled as it is, unless the checker pattern goes on past
        one end. A shorter one (part of the board hidden or outside the image) is placed
@@ -331,7 +336,8 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     ok = np.isfinite(moved) & (moved <= factor) & _fits_well(sig)
     keep = np.flatnonzero(seen)[ok]
     # The check of step 4 again, at full resolution (a corner drawn onto a finger's edge there).
-    good = _consistent(np.stack([keep % cols, keep // cols], axis=-1), refined[ok], spacing)
+    gk = np.stack([keep % cols, keep // cols], axis=-1)
+    good = _lens_rescue(gk, refined[ok], _consistent(gk, refined[ok], spacing), spacing, grey.shape)
     out[keep[good]] = refined[ok][good]
     sigma[keep[good]] = sig[ok][good]
     if _bent_fraction(out.reshape(rows, cols, 2)) > 0.1:
@@ -417,7 +423,8 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     q, sig = _saddle_fit(s, pts, r)
     moved = np.hypot(*(q - pts).T)
     keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & _fits_well(sig)
-    keep[keep] = _consistent(g[keep], q[keep], spacing)
+    sub = np.flatnonzero(keep)
+    keep[sub] = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), spacing, shape)
     g, q, sig, symq = g[keep], q[keep], sig[keep], sym[keep]
     if len(g):
         part = _largest_part(g)
@@ -576,6 +583,96 @@ def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     if len(g):
         lattice_kernels.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), tol, keep)
     return keep
+
+
+def _lens_rescue(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: float,
+                 shape: tuple[int, ...]) -> np.ndarray:
+    """``keep`` with the corners that failed the local check (:func:`_consistent`) put back
+    where a global model of the lattice's image, fitted on the corners that passed, predicts
+    them within the same tolerance.
+
+    A quadratic over two steps cannot follow a board near a fisheye's rim (squares growing 1.5
+    times a step); a lens can be modelled. The model (:func:`_lens_map`) is a homography (the
+    board's plane seen in perspective) followed by radial distortion about a free centre, the
+    division model of Fitzgibbon (CVPR 2001) with a second term. It is trusted only where it
+    predicts what it was not fitted on: the outer corners of those that passed, a quarter at a
+    time, are left out, the model fitted on the rest, and each must come within the
+    tolerance (the rescued corners are predicted the same way, out of the fit). At least ten
+    corners must pass, spanning two steps both ways; the centre is free from twenty."""
+    for _ in range(3):  # the corners put back help fit the model that judges the rest
+        more = _lens_rescue_once(g, q, keep, spacing, shape)
+        if more.sum() == keep.sum():
+            break
+        keep = more
+    return keep
+
+
+def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: float,
+                      shape: tuple[int, ...]) -> np.ndarray:
+    tol = max(0.6, 0.08 * spacing)
+    if keep.all() or keep.sum() < 10 or np.ptp(g[keep], axis=0).min() < 2:
+        return keep
+    gk, qk = g[keep].astype(np.float64), q[keep]
+    lm = _LensMap(shape, free_centre=len(gk) >= 20)
+    p = lm.fit(gk, qk)
+    if p is None:
+        return keep
+    lo, hi = gk.min(axis=0), gk.max(axis=0)
+    outer = np.flatnonzero((gk == lo).any(axis=1) | (gk == hi).any(axis=1))
+    for k in range(min(4, len(outer))):  # four folds, each a quarter of the outer corners
+        held = outer[k::4]
+        rest = np.ones(len(gk), dtype=bool)
+        rest[held] = False
+        pk = lm.fit(gk[rest], qk[rest], start=p)
+        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tol):
+            return keep
+    drop = np.flatnonzero(~keep)
+    miss = np.hypot(*(lm.predict(p, g[drop].astype(np.float64)) - q[drop]).T)
+    out = keep.copy()
+    out[drop[miss <= tol]] = True
+    return out
+
+
+class _LensMap:
+    """Lattice -> image through a homography H and radial distortion about a centre c:
+    ``u = H(g) - c``, ``d = u * 2 / (1 + sqrt(1 - 4 l1 |u|^2))`` (the point whose division-model
+    undistortion ``d / (1 + l1 |d|^2)`` is u), then ``x = c + d (1 + l2 |d|^2)``, in
+    coordinates centred on the image and scaled by half its larger side."""
+
+    def __init__(self, shape: tuple[int, ...], free_centre: bool) -> None:
+        self.centre = np.array([shape[1] - 1, shape[0] - 1]) / 2.0
+        self.f = max(shape[:2]) / 2.0
+        self.n = 12 if free_centre else 9  # l2 and c held at 0 unless the centre is free
+
+    def _map(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
+        p = np.r_[p, np.zeros(12 - len(p))]
+        h = np.c_[g, np.ones(len(g))] @ np.r_[p[:8], 1.0].reshape(3, 3).T
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            u = h[:, :2] / h[:, 2:] - p[10:12]
+            r2 = (u * u).sum(axis=1)
+            d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * p[8] * r2, 0.0))))[:, None]
+            return p[10:12] + d * (1.0 + p[9] * (d * d).sum(axis=1))[:, None]
+
+    def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None) -> np.ndarray | None:
+        from scipy.optimize import least_squares
+
+        qn = (q - self.centre) / self.f
+        starts = [start] if start is not None else []
+        if start is None:
+            for lam in (0.0, -0.5, -1.0):
+                H0 = fit_homography(g, qn / (1.0 + lam * (qn * qn).sum(axis=1, keepdims=True)))
+                if H0 is not None and abs(H0[2, 2]) > 1e-12:
+                    starts.append(np.r_[(H0 / H0[2, 2]).ravel()[:8], lam, np.zeros(self.n - 9)])
+        best = None
+        for p0 in starts:
+            with np.errstate(all="ignore"):
+                r = least_squares(lambda p: (self._map(p, g) - qn).ravel(), p0, method="lm", max_nfev=300)
+            if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
+                best = r
+        return None if best is None else best.x
+
+    def predict(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
+        return self._map(p, g) * self.f + self.centre
 
 
 def _largest_part(g: np.ndarray) -> np.ndarray:
