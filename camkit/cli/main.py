@@ -177,8 +177,11 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
 
 
 def _describe(board) -> str:
-    from camkit.target import Charuco, Checkerboard
+    from camkit.target import AprilGrid, Charuco, Checkerboard
 
+    if isinstance(board, AprilGrid):
+        return (f"AprilGrid {board.tags_x}x{board.tags_y} {board.family} tags of {board.tag_size * 1000:g} mm, "
+                f"spacing {board.tag_spacing:g}")
     if isinstance(board, Checkerboard):
         return (f"board {board.inner_cols}x{board.inner_rows} inner corners, {board.square * 1000:g} mm "
                 "squares")
@@ -190,10 +193,16 @@ def _describe(board) -> str:
 
 def _cmd_board(args: argparse.Namespace) -> int:
     from camkit.pipeline import prepare_outputs
-    from camkit.target import Charuco, Checkerboard
+    from camkit.target import AprilGrid, Charuco, Checkerboard
     from camkit.target.sheet import board_layout, parse_paper, write_board
 
-    if args.target == "charuco":
+    if args.target == "aprilgrid":
+        missing = [f for f, v in (("--tags", args.tags), ("--tag-size", args.tag_size),
+                                  ("--tag-spacing", args.tag_spacing)) if v is None]
+        if missing:
+            raise ParameterError(f"{', '.join(missing)}: an AprilGrid needs --tags, --tag-size and --tag-spacing")
+        board = AprilGrid(*args.tags, args.tag_size, args.tag_spacing, args.family)
+    elif args.target == "charuco":
         missing = [f for f, v in (("--squares", args.squares), ("--square", args.square), ("--marker", args.marker))
                    if v is None]
         if missing:
@@ -208,7 +217,7 @@ def _cmd_board(args: argparse.Namespace) -> int:
     prepare_outputs({"-o": args.output})
     path = write_board(args.output, board, paper=paper, dpi=args.dpi)
     what = (f"{args.inner[0]}x{args.inner[1]} inner corners ({args.inner[0] + 1}x{args.inner[1] + 1} squares of "
-            f"{args.square * 1000:g} mm)" if args.target != "charuco" else _describe(board))
+            f"{args.square * 1000:g} mm)" if args.target == "checkerboard" else _describe(board))
     print(f"wrote {path}: {what}, page {layout.page_w_mm:g} x {layout.page_h_mm:g} mm. "
           "Print at 100 % (actual size) and measure a square.")
     return 0
@@ -277,9 +286,10 @@ _UNITS = (("mm", 1e-3), ("cm", 1e-2), ("in", 0.0254), ("m", 1.0))
 
 
 def _target_spec(text: str):
-    """A target on the command line: ``checkerboard:9x6,25mm`` (inner corners, square) or
-    ``charuco:11x8,30mm,22mm,DICT_5X5_100[,legacy]`` (squares, square, marker, dictionary)."""
-    from camkit.target import Charuco, Checkerboard
+    """A target on the command line: ``checkerboard:9x6,25mm`` (inner corners, square),
+    ``charuco:11x8,30mm,22mm,DICT_5X5_100[,legacy]`` (squares, square, marker, dictionary) or
+    ``aprilgrid:6x6,88mm,0.3[,tag36h11]`` (tags, tag size, spacing as Kalibr's tagSpacing, family)."""
+    from camkit.target import AprilGrid, Charuco, Checkerboard
 
     kind, _, rest = text.partition(":")
     parts = [p.strip() for p in rest.split(",")] if rest else []
@@ -289,12 +299,22 @@ def _target_spec(text: str):
         if kind == "charuco" and len(parts) in (4, 5) and (len(parts) == 4 or parts[4] == "legacy"):
             return Charuco(*_board_size(parts[0]), _length_m(parts[1]), _length_m(parts[2]), parts[3],
                            legacy=len(parts) == 5)
+        if kind == "aprilgrid" and len(parts) in (3, 4):
+            return AprilGrid(*_board_size(parts[0]), _length_m(parts[1]), _ratio(parts[2]), *parts[3:])
     except CamkitError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     raise argparse.ArgumentTypeError(
         f"expected checkerboard:COLSxROWS,SQUARE (inner corners, e.g. checkerboard:9x6,25mm) or "
-        f"charuco:COLSxROWS,SQUARE,MARKER,DICTIONARY[,legacy] (squares, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100), "
-        f"got {text!r}")
+        f"charuco:COLSxROWS,SQUARE,MARKER,DICTIONARY[,legacy] (squares, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100) "
+        f"or aprilgrid:COLSxROWS,TAGSIZE,SPACING[,FAMILY] (tags, e.g. aprilgrid:6x6,88mm,0.3,tag36h11), got {text!r}")
+
+
+def _ratio(text: str) -> float:
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number (the gap between tags over the tag's size, e.g. 0.3), "
+                                         f"got {text!r}") from None
 
 
 def _target_of(args: argparse.Namespace, board_flag: str = "--board"):
@@ -406,7 +426,8 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--square", type=_length_m, help="the checkerboard's square side, e.g. 25mm")
     cal.add_argument("--target", type=_target_spec, metavar="SPEC",
                      help="another target instead of --board/--square: charuco:COLSxROWS,SQUARE,MARKER,DICTIONARY"
-                          "[,legacy] (squares; e.g. charuco:11x8,30mm,22mm,DICT_5X5_100)")
+                          "[,legacy] (squares; e.g. charuco:11x8,30mm,22mm,DICT_5X5_100) or "
+                          "aprilgrid:COLSxROWS,TAGSIZE,SPACING[,FAMILY] (tags; e.g. aprilgrid:6x6,88mm,0.3)")
     cal.add_argument("--model", default="brown-conrady", choices=_model_names(),
                      help="lens model (kannala-brandt for fisheye lenses)")
     cal.add_argument("--fix", action="append", metavar="NAME",
@@ -419,9 +440,9 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--report", metavar="HTML", help="also write an HTML report here")
     cal.set_defaults(func=_cmd_calibrate)
 
-    brd = sub.add_parser("board", help="write a printable checkerboard or ChArUco board (pdf, svg or png) at exact "
-                                       "scale")
-    brd.add_argument("--target", default="checkerboard", choices=("checkerboard", "charuco"),
+    brd = sub.add_parser("board", help="write a printable checkerboard, ChArUco board or AprilGrid (pdf, svg or "
+                                       "png) at exact scale")
+    brd.add_argument("--target", default="checkerboard", choices=("checkerboard", "charuco", "aprilgrid"),
                      help="the kind of board (default checkerboard)")
     brd.add_argument("--inner", type=_board_size, help="checkerboard: inner corners COLSxROWS, e.g. 9x6")
     brd.add_argument("--squares", type=_board_size, help="ChArUco: squares COLSxROWS, e.g. 11x8")
@@ -429,6 +450,11 @@ def build_parser() -> argparse.ArgumentParser:
     brd.add_argument("--marker", type=_length_m, help="ChArUco: marker side, e.g. 22mm")
     brd.add_argument("--dictionary", default="DICT_5X5_100", help="ChArUco: marker dictionary (default DICT_5X5_100)")
     brd.add_argument("--legacy", action="store_true", help="ChArUco: OpenCV's pattern before 4.6")
+    brd.add_argument("--tags", type=_board_size, help="AprilGrid: tags COLSxROWS, e.g. 6x6")
+    brd.add_argument("--tag-size", type=_length_m, help="AprilGrid: a tag's side, e.g. 88mm")
+    brd.add_argument("--tag-spacing", type=_ratio,
+                     help="AprilGrid: the gap between tags over the tag's side (Kalibr's tagSpacing), e.g. 0.3")
+    brd.add_argument("--family", default="tag36h11", help="AprilGrid: tag family (default tag36h11)")
     brd.add_argument("--margin", type=_length_m, help="white margin (default one square)")
     brd.add_argument("--dpi", type=int, default=300, help="pixels per inch for .png (default 300)")
     brd.add_argument("--paper", help="centre the board on A4, A3, letter or WxHmm paper (default: the board's own "
@@ -468,7 +494,8 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--board", type=_board_size, default=(9, 6), help="inner corners COLSxROWS (default 9x6)")
     sim.add_argument("--square", type=_length_m, default=0.03, help="square side, e.g. 30mm (default 0.03 m)")
     sim.add_argument("--target", type=_target_spec, metavar="SPEC",
-                     help="another target instead of --board/--square, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100")
+                     help="another target instead of --board/--square, e.g. charuco:11x8,30mm,22mm,DICT_5X5_100 or "
+                          "aprilgrid:6x6,88mm,0.3")
     sim.add_argument("--model", default="brown-conrady", choices=_model_names())
     sim.add_argument("--bit-depth", type=int, default=8, choices=(8, 16),
                      help="bits per sample of the files: 8 (default) or 16 (the sensor's full range, white at 65535)")

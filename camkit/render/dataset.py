@@ -29,7 +29,8 @@ def plan_views(camera: CameraModel, board: Target, n: int, rng: np.random.Genera
     """Poses ``cam_from_target`` for ``n`` views: board centres spread over the image on a
     jittered grid (so corners cover it, corners included), each board tilted by an angle in
     ``tilt_deg`` about a random axis in its plane and rolled at random, at a distance where it
-    spans a fraction ``fill`` of the image width; every inner corner visible.
+    spans a fraction ``fill`` of the image width, its printed face towards the camera
+    (:attr:`~camkit.target.Sheet.v_up`); every inner corner visible.
     """
     n = as_positive_int(n, "n")
     if not isinstance(rng, np.random.Generator):
@@ -37,7 +38,11 @@ def plan_views(camera: CameraModel, board: Target, n: int, rng: np.random.Genera
     W, H = camera.width, camera.height
     pts = board.object_points()
     centre = pts.mean(axis=0)
-    marks = board.sheet().black  # the printed pattern's width (a checkerboard's squares)
+    sheet = board.sheet()
+    marks = sheet.black  # the printed pattern's width (a checkerboard's squares)
+    # The printed face towards the camera: a target whose y runs up its page (z towards the
+    # viewer) is turned half about its x axis.
+    face = np.diag([1.0, -1.0, -1.0]) if sheet.v_up else np.eye(3)
     span = float(marks[:, 2].max() - marks[:, 0].min())
     g = int(np.ceil(np.sqrt(n)))
     cells = [((i + 0.5) / g, (j + 0.5) / g) for j in range(g) for i in range(g)]
@@ -56,7 +61,7 @@ def plan_views(camera: CameraModel, board: Target, n: int, rng: np.random.Genera
             phi = rng.uniform(0, 2 * np.pi)
             tilt = np.radians(rng.uniform(*tilt_deg))
             R = matrix_from_rvec([0.0, 0.0, rng.uniform(-0.5, 0.5)]) @ matrix_from_rvec(
-                tilt * np.array([np.cos(phi), np.sin(phi), 0.0]))
+                tilt * np.array([np.cos(phi), np.sin(phi), 0.0])) @ face
             t = ray * dist / ray[2] - R @ centre
             pose = Pose(R, t)
             c = camera.project(pose.apply(pts))

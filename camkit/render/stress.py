@@ -149,9 +149,11 @@ def _camera(rng: np.random.Generator, megapixels: tuple[float, float]) -> tuple[
 
 
 def _pose(rng: np.random.Generator, camera: CameraModel, board: Checkerboard, square_px: float,
-          partial: bool, back: bool, max_tilt: float = 70.0, centred: bool = False) -> Pose | None:
+          partial: bool, back: bool, max_tilt: float = 70.0, centred: bool = False,
+          square: float | None = None) -> Pose | None:
     """A pose with squares of about ``square_px`` at the board's centre; every corner inside
-    the frame unless ``partial`` (then some are outside); seen from behind if ``back``."""
+    the frame unless ``partial`` (then some are outside); seen from behind if ``back``.
+    ``square``: the length that spans ``square_px`` (default the board's square)."""
     pts = board.object_points()
     centre = pts.mean(axis=0)
     W, H = camera.width, camera.height
@@ -169,7 +171,7 @@ def _pose(rng: np.random.Generator, camera: CameraModel, board: Checkerboard, sq
             continue
         ray = ray / np.linalg.norm(ray)
         f = float(np.sqrt(camera.fx * camera.fy))
-        dist = f * board.square / square_px
+        dist = f * (board.square if square is None else square) / square_px
         t = ray * dist - R @ centre
         pose = Pose(R, t)
         cam = pose.apply(pts)

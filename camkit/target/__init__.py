@@ -1,5 +1,7 @@
-"""Calibration targets: the Target contract, its registry, the checkerboard and printable sheets."""
+"""Calibration targets: the Target contract, its registry, the checkerboard, ChArUco and AprilGrid, and
+printable sheets."""
 
+from camkit.target.aprilgrid import APRILTAG_FAMILIES, AprilGrid
 from camkit.target.aruco import DICTIONARY_NAMES, ArucoDictionary, get_dictionary
 from camkit.target.base import TARGETS, Detection, Sheet, Target, get_target, register_target
 from camkit.target.charuco import Charuco
@@ -7,9 +9,11 @@ from camkit.target.checkerboard import Checkerboard, detect_corners
 from camkit.target.sheet import PAPER_SIZES_MM, BoardLayout, board_layout, parse_paper, write_board
 
 __all__ = [
+    "APRILTAG_FAMILIES",
     "DICTIONARY_NAMES",
     "PAPER_SIZES_MM",
     "TARGETS",
+    "AprilGrid",
     "ArucoDictionary",
     "BoardLayout",
     "Charuco",

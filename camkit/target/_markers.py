@@ -44,17 +44,18 @@ def is_x_corner(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> np.ndarra
     return (changes == 4) & (contrast > 0.15) & (sym < 0.25)
 
 
-def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary,
-                 border: int = 1) -> tuple[np.ndarray, np.ndarray]:
+def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
+                 src: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
     where a quad holds no code. All quads at once: their homographies from the unit square,
     one sampling of every cell's 3 x 3 middle points and of the white margin around each. The
     code's cells are inside a black border ``border`` cells wide (1 for ArUco, 2 for Kalibr's
-    AprilTags)."""
+    AprilTags). ``src`` (K, 4, 2): where each quad's corners lie in the marker's cells (the
+    marker spans ``[0, n]^2``), where not on the marker's own corners."""
     K = len(quads)
     n = d.marker_size + 2 * border
     unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
-    Hs = fit_homographies(np.broadcast_to(unit, quads.shape), quads)
+    Hs = fit_homographies(np.broadcast_to(unit, quads.shape) if src is None else src, quads)
     ok = np.isfinite(Hs).all(axis=(1, 2))
     Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
     ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
@@ -97,8 +98,9 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarra
     out: list[np.ndarray] = []
     ii = np.empty((H + 1, W + 1))
     markers_kernels.integral(g, ii)
-    for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}):
-        markers_kernels.dark_mask(g, ii, r, 0.03, dark)
+    offsets = (0.03, 0.15) if opening else (0.03,)
+    for r, c in [(r, c) for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}) for c in offsets]:
+        markers_kernels.dark_mask(g, ii, r, c, dark)
         if opening:
             markers_kernels.cross_filter(dark, False, opened)
             markers_kernels.cross_filter(opened, True, dark)
@@ -142,7 +144,18 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarra
 MARKER_LEVEL_SIDE = 1600
 
 
-def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1) -> tuple[dict[int, list[np.ndarray]], int]:
+def _swollen(n: int, b: float) -> np.ndarray:
+    """The fifteen ways a quad can hold a marker of ``n`` cells with squares of ``b`` cells
+    joined at some of its corners (diagonally off them, as an AprilGrid's corner squares):
+    (15, 4, 2) places of the quad's corners in the marker's cells, fewest joined first."""
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    out = np.array([[-b, -b], [b, -b], [b, b], [-b, b]])
+    masks = sorted(range(1, 16), key=lambda m: (bin(m).count("1"), m))
+    return np.stack([unit + out * ((m >> np.arange(4)) & 1)[:, None] for m in masks])
+
+
+def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
+                 corner_squares: float = 0.0) -> tuple[dict[int, list[np.ndarray]], int]:
     """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
     corners of every quad that holds it, (4, 2) full-image pixels in the code's order
     (top-left, top-right, bottom-right, bottom-left of the marker as the dictionary draws it),
@@ -152,7 +165,10 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1) -> tuple
     a 2x2-mean pyramid (longer side at most :data:`MARKER_LEVEL_SIDE`) down: a finer level is
     read where the coarser gave fewer than two markers or markers of under 2 px a cell across
     (bits blur together there); a finer level's reading replaces a coarser one that read no
-    more."""
+    more. ``corner_squares`` (an AprilGrid's spacing, over the marker's side): a quad that
+    reads as nothing is read again as a marker with such squares joined at some of its corners
+    (a blurred junction joins their dark regions), and kept with the marker's own corners.
+    """
     levels = [(full, 1)]
     while max(levels[-1][0].shape) > MARKER_LEVEL_SIDE:
         levels.append((_half(levels[-1][0]), levels[-1][1] * 2))
@@ -162,6 +178,8 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1) -> tuple
         quads = find_quads(g, 2 * n_cells, opening=border >= 2)  # two pixels a cell at least
         codes, turns = (read_markers(g, quads, d, border) if len(quads)
                         else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
+        if corner_squares > 0 and (codes < 0).any():
+            quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
         level: dict[int, list[np.ndarray]] = {}
         for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
             if code < 0:
@@ -181,6 +199,34 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1) -> tuple
         if len(level) >= 2 and np.median(cells) >= 2.0:
             break
     return found, f
+
+
+def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, d: ArucoDictionary,
+                  border: int, b: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quads that read as no code read again as markers with squares of ``b`` cells joined
+    at some corners (:func:`_swollen`, fewest first; all fifteen ways in one batch), their
+    corners replaced by the marker's own where one way reads."""
+    n = d.marker_size + 2 * border
+    fail = np.flatnonzero(codes < 0)
+    ways = _swollen(n, b)
+    src = np.broadcast_to(ways[None], (len(fail), 15, 4, 2)).reshape(-1, 4, 2)
+    q = np.repeat(quads[fail], 15, axis=0)
+    ids, tn = read_markers(g, q, d, border, src)
+    ids, tn = ids.reshape(len(fail), 15), tn.reshape(len(fail), 15)
+    quads, codes, turns = quads.copy(), codes.copy(), turns.copy()
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    for i, k in enumerate(fail):  # the first way that reads (fewest corners joined)
+        hit = np.flatnonzero(ids[i] >= 0)
+        if not len(hit):
+            continue
+        w = hit[0]
+        H = fit_homographies(ways[w][None], quads[k][None])[0]
+        if not np.isfinite(H).all():
+            continue
+        p = np.c_[unit, np.ones(4)] @ H.T
+        quads[k] = p[:, :2] / p[:, 2:]
+        codes[k], turns[k] = ids[i, w], tn[i, w]
+    return quads, codes, turns
 
 
 def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,
@@ -234,14 +280,48 @@ def drop_poor_fits(out: np.ndarray, sig: np.ndarray) -> None:
         sig[bad] = np.nan
 
 
+def _local_fits(rel: np.ndarray, near: np.ndarray, wide: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """For each query k: the image point the map target -> image predicts at the query, fitted
+    on the known points j (``rel`` (K, J, 2): j's target-frame place seen from k over the
+    radius; ``near``/``wide`` (K, J): j within the radius / 1.6 radius and usable; ``pts``
+    (J, 2)): quadratic on the near ones where eight or more, else on the wide ones where eight
+    or more, else affine on four to seven wide ones; NaN where fewer. (K, 2)."""
+    K = len(rel)
+    terms = np.stack([np.ones(rel.shape[:2]), rel[..., 0], rel[..., 1], rel[..., 0] ** 2, rel[..., 0] * rel[..., 1],
+                      rel[..., 1] ** 2], axis=-1)
+    n_near, n_wide = near.sum(axis=1), wide.sum(axis=1)
+    out = np.full((K, 2), np.nan)
+    for nt, within, which in ((6, near, n_near >= 8), (6, wide, (n_near < 8) & (n_wide >= 8)),
+                              (3, wide, (n_near < 8) & (n_wide >= 4) & (n_wide < 8))):
+        k = np.flatnonzero(which)
+        if not len(k):
+            continue
+        A = terms[k][:, :, :nt] * within[k][:, :, None]
+        M = np.einsum("kji,kjl->kil", A, terms[k][:, :, :nt])
+        b = np.einsum("kji,jc->kic", A, pts)
+        ok = np.linalg.cond(M) < 1e10
+        c = np.full((len(k), nt, 2), np.nan)
+        c[ok] = np.linalg.solve(M[ok], b[ok])
+        out[k] = c[:, 0, :]
+    return out
+
+
+def predict_points(obj: np.ndarray, pts: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
+    """Image places of the target-frame points ``query`` (K, 2) from the found points (``obj``
+    (N, 2), ``pts`` (N, 2)) around each (:func:`_local_fits`); NaN where too few are near."""
+    rel = (obj[None, :, :] - query[:, None, :]) / radius
+    reach = np.abs(rel).max(axis=2)
+    return _local_fits(rel, reach <= 1.0, reach <= 1.6, pts)
+
+
 def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.ndarray) -> np.ndarray:
     """Which of the found points (target-frame ``obj`` (N, 2), image ``pts`` (N, 2)) agree with
-    their neighbours: each against the quadratic map target -> image fitted (least squares) on
-    the other points within ``radius`` of it in the target frame (an affine map where fewer than
-    eight of them span it), missing it by at most ``tol`` (N,) pixels. The worst offender in its
-    own neighbourhood goes first, round by round, so that one wrong point does not condemn its
-    neighbours; a point with fewer than four neighbours cannot be checked and goes. Two points
-    at one place (one X-junction given two labels) both go."""
+    their neighbours: each against the map fitted on the others around it (:func:`_local_fits`:
+    a quadratic on those within ``radius`` in the target frame, or within ``1.6 radius``; an
+    affine map from four to seven), missing it by at most ``tol`` (N,) pixels. The worst
+    offender in its own neighbourhood goes first, round by round, so that one wrong point does
+    not condemn its neighbours; a point with fewer than four neighbours cannot be checked and
+    goes. Two points at one place (one X-junction given two labels) both go."""
     n = len(obj)
     keep = np.ones(n, dtype=bool)
     if n == 0:
@@ -250,30 +330,77 @@ def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.n
     np.fill_diagonal(d, np.inf)
     keep &= d.min(axis=1) > 0.5 * tol
     rel = (obj[None, :, :] - obj[:, None, :]) / radius  # (k, j, 2): j seen from k
-    near = (np.abs(rel).max(axis=2) <= 1.0) & ~np.eye(n, dtype=bool)
-    terms = np.stack([np.ones((n, n)), rel[..., 0], rel[..., 1], rel[..., 0] ** 2, rel[..., 0] * rel[..., 1],
-                      rel[..., 1] ** 2], axis=-1)
+    reach = np.abs(rel).max(axis=2)
+    own = np.eye(n, dtype=bool)
+    near = (reach <= 1.0) & ~own
+    wide = (reach <= 1.6) & ~own
     for _ in range(8):
-        w = (near & keep[None, :]).astype(np.float64)
-        count = w.sum(axis=1)
         res = np.full(n, np.inf)
-        for nt, enough in ((6, count >= 8), (3, (count >= 4) & (count < 8))):
-            k = np.flatnonzero(enough & keep)
-            if not len(k):
-                continue
-            A = terms[k][:, :, :nt] * w[k][:, :, None]
-            M = np.einsum("kji,kjl->kil", A, terms[k][:, :, :nt])
-            b = np.einsum("kji,jc->kic", A, pts)
-            ok = np.linalg.cond(M) < 1e10
-            c = np.full((len(k), nt, 2), np.nan)
-            c[ok] = np.linalg.solve(M[ok], b[ok])
-            res[k] = np.hypot(*(c[:, 0, :] - pts[k]).T)
+        k = np.flatnonzero(keep)
+        pred = _local_fits(rel[k], near[k] & keep[None, :], wide[k] & keep[None, :], pts)
+        res[k] = np.hypot(*(pred - pts[k]).T)
         bad = keep & ~(res <= tol)
         if not bad.any():
             break
         ratio = np.where(bad, res / tol, 0.0)
         ratio[~np.isfinite(ratio)] = 1e300
         # The worst within its own neighbourhood goes.
-        worst = bad & (ratio >= np.max(np.where(near & keep[None, :], ratio[None, :], 0.0), axis=1))
+        worst = bad & (ratio >= np.max(np.where(wide & keep[None, :], ratio[None, :], 0.0), axis=1))
         keep &= ~worst
     return keep
+
+
+def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """Where each of the board's markers should be, from its neighbours: for every marker with
+    one or more markers of ``quads`` (id -> (4, 2) image corners) within one place of it on the
+    layout ``grid`` (itself left out), its corners ``obj`` (M, 4, 2) through the least-squares
+    homography of those neighbours' corners. One fit per marker, batched by neighbour count."""
+    have = np.array(sorted(quads), dtype=np.int64)
+    if not len(have):
+        return {}
+    near = (np.abs(grid[:, None, :] - grid[None, have, :]).max(axis=2) <= 1) & (np.arange(len(grid))[:, None]
+                                                                               != have[None, :])
+    count = near.sum(axis=1)
+    img = np.stack([quads[m] for m in have])
+    out: dict[int, np.ndarray] = {}
+    for c in np.unique(count[count > 0]):  # one batched fit per neighbour count
+        ms = np.flatnonzero(count == c)
+        nb = np.stack([have[near[m]] for m in ms])  # (K, c)
+        idx = np.searchsorted(have, nb)
+        src = obj[nb].reshape(len(ms), 4 * c, 2)
+        dst = img[idx].reshape(len(ms), 4 * c, 2)
+        H = fit_homographies(src, dst)
+        p = np.einsum("kij,kpj->kpi", H, np.concatenate([obj[ms], np.ones((len(ms), 4, 1))], axis=2))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pred = p[:, :, :2] / p[:, :, 2:]
+        for m, q in zip(ms, pred, strict=True):
+            if np.isfinite(q).all():
+                out[int(m)] = q
+    return out
+
+
+def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.ndarray, grid: np.ndarray,
+                    quads: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """The board's markers ``quads`` (id -> confirmed (4, 2) corners, full-image pixels) and
+    those the neighbours find: a marker not among them (its quad not found, or merged with
+    something beside it) is read where its neighbours put it (:func:`neighbour_quads`) and
+    kept where it reads as its own id the right way up. Rounds until none is added, so that a
+    row of markers is recovered from one side."""
+    quads = dict(quads)
+    H, W = grey.shape
+    tried: set[int] = set()
+    while True:
+        pred = {m: q for m, q in neighbour_quads(obj, grid, quads).items() if m not in quads and m not in tried}
+        inside = [m for m, q in pred.items()
+                  if (q >= 1).all() and (q[:, 0] <= W - 2).all() and (q[:, 1] <= H - 2).all()]
+        if not inside:
+            return quads
+        tried.update(inside)
+        ids, turns = read_markers(grey, np.stack([pred[m] for m in inside]), d, border)
+        added = False
+        for m, i, k in zip(inside, ids, turns, strict=True):
+            if i == m and k == 0:
+                quads[m] = pred[m]
+                added = True
+        if not added:
+            return quads

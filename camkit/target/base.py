@@ -106,23 +106,40 @@ class Sheet:
         ``(u0, v0, u1, v1)`` of each black rectangle, metres, target frame.
     label : str
         One line printed under the target (what it is, its size, "print at 100 %").
+    v_up : bool
+        False (the default): the target's y axis runs down the printed page, so its z axis
+        points away from a camera that sees the printed face (OpenCV's boards). True: y runs
+        up the page and z points at such a camera (Kalibr's AprilGrid). The printed page and
+        :meth:`raster` follow it; :meth:`coverage` is always in the target frame.
     """
 
     extent: tuple[float, float, float, float]
     black: np.ndarray
     label: str
+    v_up: bool = False
+
+    def page_marks(self) -> np.ndarray:
+        """The black rectangles as the page shows them, (K, 4): ``(u0, v0, u1, v1)`` with v
+        measured down the page from the extent's ``v_min`` (the target frame's own rectangles
+        unless :attr:`v_up`, where they are mirrored top to bottom within the extent)."""
+        if not self.v_up:
+            return self.black
+        lo, hi = self.extent[1], self.extent[3]
+        b = self.black
+        return np.stack([b[:, 0], lo + hi - b[:, 3], b[:, 2], lo + hi - b[:, 1]], axis=-1)
 
     def raster(self, px_per_m: float) -> np.ndarray:
-        """The sheet as a uint8 image (255 white, 0 black), ``px_per_m`` pixels per metre, the
-        pixel grid aligned with the extent's top-left (pixel ``(i, j)`` covers ``u_min + [j,
-        j + 1] / px_per_m``). Rectangle edges are rounded to whole pixels: choose a density
+        """The printed page as a uint8 image (255 white, 0 black), ``px_per_m`` pixels per
+        metre, the pixel grid aligned with the extent's top-left (pixel ``(i, j)`` covers
+        ``u_min + [j, j + 1] / px_per_m`` and, down the page, :meth:`page_marks`' ``v_min + [i,
+        i + 1] / px_per_m``). Rectangle edges are rounded to whole pixels: choose a density
         where the marks' sizes are whole numbers of pixels for an exact raster."""
         px_per_m = _density(px_per_m, self.extent)
         u0, v0, u1, v1 = self.extent
         W = max(1, round((u1 - u0) * px_per_m))
         H = max(1, round((v1 - v0) * px_per_m))
         img = np.full((H, W), 255, dtype=np.uint8)
-        r = np.rint((self.black - [u0, v0, u0, v0]) * px_per_m).astype(np.int64)
+        r = np.rint((self.page_marks() - [u0, v0, u0, v0]) * px_per_m).astype(np.int64)
         r[:, [0, 2]] = np.clip(r[:, [0, 2]], 0, W)
         r[:, [1, 3]] = np.clip(r[:, [1, 3]], 0, H)
         for a, b, c, d in r:  # one slice per mark, not per pixel
@@ -130,10 +147,11 @@ class Sheet:
         return img
 
     def coverage(self, px_per_m: float) -> np.ndarray:
-        """The fraction of each texel the marks cover, float64 in [0, 1], on the grid of
-        :meth:`raster`: exact box-filtered area, so an edge between texel boundaries keeps its
-        position (a texture that rounds it to a boundary moves corners by up to half a
-        texel)."""
+        """The fraction of each texel the marks cover, float64 in [0, 1], texel ``(i, j)``
+        covering ``(u_min, v_min) + ([j, j + 1], [i, i + 1]) / px_per_m`` in the target frame
+        (:meth:`raster`'s grid unless :attr:`v_up`): exact box-filtered area, so an edge
+        between texel boundaries keeps its position (a texture that rounds it to a boundary
+        moves corners by up to half a texel)."""
         px_per_m = _density(px_per_m, self.extent)
         u0, v0, u1, v1 = self.extent
         W = max(1, round((u1 - u0) * px_per_m))

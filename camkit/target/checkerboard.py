@@ -139,7 +139,9 @@ def _profiles(s: np.ndarray, pts: np.ndarray, n: int = 32) -> np.ndarray:
 def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """Saddle point of a quadratic fitted on a (2r+1)^2 window centred on each estimate
     (sampled bicubically, so the window is symmetric about it); per-corner sigma from the
-    fit's residuals propagated through the saddle equations."""
+    fit's residuals propagated through the saddle equations, NaN where the fit has not
+    converged (its saddle still half a pixel or more from the window's centre after ``iters``
+    steps of at most a pixel: no saddle near the estimate)."""
     q = pts.astype(np.float64).copy()
     oy, ox = np.mgrid[-r:r + 1, -r:r + 1].astype(np.float64)
     dx, dy = ox.ravel(), oy.ravel()
@@ -157,13 +159,15 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
     c = vals @ pinv.T
     res = vals - c @ A.T
     var = (res * res).sum(axis=1) / max(A.shape[0] - 6, 1)
-    a, b, cc = c[:, 0], c[:, 1], c[:, 2]
+    a, b, cc, d, e = c[:, 0], c[:, 1], c[:, 2], c[:, 3], c[:, 4]
     Hdet = 4 * a * cc - b * b
-    # d saddle / d (d, e) = -H^-1, H = [[2a, b], [b, 2c]]; var(d) = var(e) = var * (AtA^-1)_33
-    h11, h12, h22 = 2 * cc / Hdet, -b / Hdet, 2 * a / Hdet
-    cvar = var * AtA_inv[3, 3]
-    sigma = np.sqrt(0.5 * cvar * (h11 * h11 + 2 * h12 * h12 + h22 * h22))
-    return q, sigma
+    with np.errstate(divide="ignore", invalid="ignore"):  # a flat patch (Hdet 0): NaN, dropped
+        rest = np.hypot((-2 * cc * d + b * e) / Hdet, (b * d - 2 * a * e) / Hdet)
+        # d saddle / d (d, e) = -H^-1, H = [[2a, b], [b, 2c]]; var(d) = var(e) = var * (AtA^-1)_33
+        h11, h12, h22 = 2 * cc / Hdet, -b / Hdet, 2 * a / Hdet
+        cvar = var * AtA_inv[3, 3]
+        sigma = np.sqrt(0.5 * cvar * (h11 * h11 + 2 * h12 * h12 + h22 * h22))
+    return q, np.where(rest < 0.5, sigma, np.nan)
 
 
 def _edge_directions(v: np.ndarray) -> np.ndarray:

@@ -66,7 +66,7 @@ class BoardLayout:
 
 
 def _marks_box(sheet: Sheet) -> tuple[float, float, float, float]:
-    b = sheet.black
+    b = sheet.page_marks()
     return float(b[:, 0].min()), float(b[:, 1].min()), float(b[:, 2].max()), float(b[:, 3].max())
 
 
@@ -120,7 +120,7 @@ def _figure(sheet: Sheet, layout: BoardLayout):
     ax.set_ylim(layout.page_h_mm, 0.0)  # y down, as the page is read
     ax.set_axis_off()
     bu0, bv0, _, _ = _marks_box(sheet)
-    mm = (sheet.black - [bu0, bv0, bu0, bv0]) * 1000.0 + [layout.x0_mm, layout.y0_mm, layout.x0_mm, layout.y0_mm]
+    mm = (sheet.page_marks() - [bu0, bv0, bu0, bv0]) * 1000.0 + [layout.x0_mm, layout.y0_mm, layout.x0_mm, layout.y0_mm]
     for x0, y0, x1, y1 in mm:
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, facecolor="black", edgecolor="none", linewidth=0.0,
                                antialiased=False, snap=False))

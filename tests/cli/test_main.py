@@ -444,7 +444,46 @@ def test_charuco_simulate_then_calibrate_recovers_the_camera(tmp_path, capsys):
         assert cam[name] == pytest.approx(truth["camera"][name], abs=0.1), name
 
 
+def test_aprilgrid_board_printed_at_exact_scale_is_read_by_opencv(tmp_path):
+    """`camkit board --target aprilgrid`: the PNG at 200 dpi, read by OpenCV's ArUco detector
+    (AprilTag 36h11, a border two bits wide): every tag, its id where Kalibr puts it (tag 0 at
+    the bottom left of the page), and the tags measure 30 mm."""
+    import cv2
+
+    out = tmp_path / "g.png"
+    assert main(["board", "--target", "aprilgrid", "--tags", "4x3", "--tag-size", "30mm", "--tag-spacing", "0.3",
+                 "--dpi", "200", "-o", str(out)]) == 0
+    img = np.ascontiguousarray(read_image(out)[:, :, 0])
+    params = cv2.aruco.DetectorParameters()
+    params.markerBorderBits = 2
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), params)
+    corners, ids, _ = det.detectMarkers(img)
+    assert sorted(np.ravel(ids)) == list(range(12))
+    centre = {int(i): c.reshape(4, 2).mean(axis=0) for c, i in zip(corners, np.ravel(ids), strict=True)}
+    assert centre[0][1] > centre[4][1] > centre[8][1]  # rows go up the page
+    assert centre[0][0] < centre[1][0] < centre[3][0]
+    side = np.mean([np.hypot(*(c.reshape(4, 2) - np.roll(c.reshape(4, 2), 1, axis=0)).T).mean() for c in corners])
+    assert side / (0.03 * 200 / 0.0254) == pytest.approx(1.0, abs=0.005)
+
+
+def test_aprilgrid_simulate_then_calibrate_recovers_the_camera(tmp_path):
+    spec = "aprilgrid:6x6,40mm,0.3"
+    assert main(["simulate", "--target", spec, "--views", "6", "--seed", "3", "-o", str(tmp_path / "sim")]) == 0
+    truth = json.loads((tmp_path / "sim" / "truth.json").read_text())
+    assert truth["board"] == {"type": "aprilgrid", "tags_x": 6, "tags_y": 6, "tag_size": 0.04, "tag_spacing": 0.3,
+                              "family": "tag36h11"}
+    assert main(["calibrate", str(tmp_path / "sim"), "--target", spec, "-o", str(tmp_path / "cam.json")]) == 0
+    cam = json.loads((tmp_path / "cam.json").read_text())["model"]
+    for name in ("fx", "fy", "cx", "cy"):
+        assert cam[name] == pytest.approx(truth["camera"][name], abs=0.1), name
+
+
 @pytest.mark.parametrize("args,message", [
+    (["--target", "aprilgrid:6x6,88mm"], "or aprilgrid:COLSxROWS,TAGSIZE,SPACING"),
+    (["--target", "aprilgrid:6x6,88mm,1.5"], "tag_spacing: expected the gap between tags"),
+    (["--target", "aprilgrid:6x6,88mm,0.3,tag99h9"], "family: expected one of"),
+    (["--target", "aprilgrid:6x6,88mm,wide"], "expected a number"),
     (["--target", "charuco:11x8,30mm,22mm"], "expected checkerboard:COLSxROWS,SQUARE"),
     (["--target", "charuco:11x8,30mm,40mm,DICT_5X5_100"], "marker: expected a marker smaller than its square"),
     (["--target", "charuco:11x8,30mm,22mm,DICT_9X9_1"], "dictionary: expected one of"),
@@ -455,7 +494,7 @@ def test_calibrate_target_refusals(tmp_path, capsys, args, message):
     img = tmp_path / "a.png"
     write_png(img, np.zeros((10, 10), np.uint8))
     # argparse refuses a malformed spec (exit 2); the command refuses a contradiction (1).
-    parse_error = message.startswith(("expected", "marker", "dictionary"))
+    parse_error = message.startswith(("expected", "marker", "dictionary", "or aprilgrid", "tag_spacing", "family"))
     with pytest.raises(SystemExit) if parse_error else contextlib.nullcontext():
         code = main(["calibrate", str(img), *args, "-o", str(tmp_path / "c.json")])
         assert code == 1
@@ -468,4 +507,7 @@ def test_charuco_board_needs_its_sizes(tmp_path, capsys):
     assert "--marker: a ChArUco board needs --squares, --square and --marker" in capsys.readouterr().err
     assert main(["board", "--square", "30mm", "-o", str(tmp_path / "c.pdf")]) == 1
     assert "--inner, --square: a checkerboard needs both" in capsys.readouterr().err
+    assert main(["board", "--target", "aprilgrid", "--tags", "6x6", "--tag-size", "88mm", "-o",
+                 str(tmp_path / "c.pdf")]) == 1
+    assert "--tag-spacing: an AprilGrid needs --tags, --tag-size and --tag-spacing" in capsys.readouterr().err
     assert not (tmp_path / "c.pdf").exists()

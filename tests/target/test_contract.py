@@ -73,6 +73,8 @@ def test_render_detect_recover_the_truth(target_cls):
     span = float(np.ptp(pts[:, 0]))
     camera = _camera()
     R = Pose.from_rvec([np.deg2rad(25.0), np.deg2rad(-10.0), 0.05], [0.0, 0.0, 0.0]).R
+    if target.sheet().v_up:  # the printed face towards the camera: z points at it
+        R = R @ np.diag([1.0, -1.0, -1.0])
     t = np.array([0.0, 0.0, 1.9 * span * camera.fx / camera.width]) - R @ centre
     img, truth = render_target(camera, Pose(R, t), target)
     det = target.detect(img)

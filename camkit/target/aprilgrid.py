@@ -1,0 +1,305 @@
+"""Kalibr's AprilGrid (a grid of AprilTags with a black square at every tag corner) and its
+detector.
+
+Layout, object points and ids are Kalibr's (``GridCalibrationTargetAprilgrid`` and its
+``createTargetPDF.py``, ethz-asl/kalibr; the facts, not the code, carried over):
+
+- the board frame's origin is the first tag's outer corner, x along the tag columns, y along
+  the tag rows *up* the printed face (tag 0 at the bottom left of the page), so z points at a
+  camera that sees the printed face (:attr:`~camkit.target.Sheet.v_up`);
+- tag ``t`` is in column ``t % tags_x`` and row ``t // tags_x``, its outer corner at
+  ``(1 + tag_spacing) * tag_size`` times that; ``tag_spacing`` is the gap between tags over
+  ``tag_size`` (Kalibr's ``tagSpacing``);
+- a tag is ``tag_size`` across: the code's ``n x n`` bits inside a black border two bits wide
+  (Kalibr prints ``borderBits = 2``), drawn turned by a half-turn from OpenCV's drawing of the
+  same code (``np.rot90(code, 2)`` in Kalibr's script; checked in tests/target/test_aprilgrid.py);
+- a black square of side ``tag_spacing * tag_size`` sits diagonally off each tag corner, so
+  every tag corner is an X-junction (Kalibr's ``symmCorners``);
+- the points are the tags' corners, ``2 tags_y`` rows of ``2 tags_x``, numbered row by row
+  from the bottom: point ``(c, r)`` at ``((c // 2) (1 + spacing) + c % 2, (r // 2) (1 +
+  spacing) + r % 2) * tag_size``; tag ``t``'s corners are points ``b, b + 1, b + 2 tags_x + 1,
+  b + 2 tags_x`` with ``b = 4 tags_x (t // tags_x) + 2 (t % tags_x)``.
+
+The codes are OpenCV's AprilTag dictionaries (:mod:`camkit.target.aruco`; AprilRobotics's
+families).
+
+Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.target._markers`:
+dark quads, cells read against the family with its error correction, ids checked against the
+board and confirmed by a neighbour), then places each confirmed tag's four corners at their
+saddle points (camkit's sub-pixel estimator, not the quad's corners), with their sigma; a corner
+that moves more than a tenth of a tag (1.5 px at least), that is not an X-junction on a circle
+inside its corner square, or whose fit is over twice the median sigma, is dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Self
+
+import numpy as np
+
+from camkit._validate import as_positive_float, as_positive_int
+from camkit.errors import ParameterError
+from camkit.target._markers import (
+    confirm_markers,
+    consistent_points,
+    drop_poor_fits,
+    find_markers,
+    is_x_corner,
+    neighbour_quads,
+    predict_points,
+    recover_markers,
+    refine_patches,
+)
+from camkit.target.aruco import ArucoDictionary, get_dictionary
+from camkit.target.base import Detection, Sheet, Target, register_target
+from camkit.target.checkerboard import _to_grey
+
+__all__ = ["APRILTAG_FAMILIES", "AprilGrid"]
+
+#: Kalibr's tag families that OpenCV's dictionaries hold: family name -> dictionary name.
+APRILTAG_FAMILIES: dict[str, str] = {
+    "tag36h11": "DICT_APRILTAG_36h11",
+    "tag25h9": "DICT_APRILTAG_25h9",
+    "tag16h5": "DICT_APRILTAG_16h5",
+}
+
+#: Bits of black border around a tag's code on Kalibr's printed grid.
+BORDER_BITS = 2
+
+
+@register_target
+@dataclass(frozen=True, slots=True)
+class AprilGrid(Target):
+    """Kalibr's AprilGrid: ``tags_x x tags_y`` AprilTags of side ``tag_size`` metres, apart by
+    ``tag_spacing * tag_size`` (see the module docstring for the layout, Kalibr's).
+
+    Examples
+    --------
+    >>> grid = AprilGrid(6, 6, 0.088, 0.3)
+    >>> grid.object_points().shape
+    (144, 3)
+    >>> grid.object_points()[2]    # tag 1's first corner
+    array([0.1144, 0.    , 0.    ])
+    """
+
+    tags_x: int
+    tags_y: int
+    tag_size: float
+    tag_spacing: float
+    family: str = "tag36h11"
+
+    name = "aprilgrid"
+
+    def __post_init__(self) -> None:
+        tx = as_positive_int(self.tags_x, "tags_x")
+        ty = as_positive_int(self.tags_y, "tags_y")
+        if tx * ty < 2:
+            raise ParameterError(f"tags_x, tags_y: expected at least two tags (a tag is confirmed by a neighbour), "
+                                 f"got {tx}x{ty}")
+        size = as_positive_float(self.tag_size, "tag_size")
+        spacing = as_positive_float(self.tag_spacing, "tag_spacing")
+        if spacing > 1.0:
+            raise ParameterError(f"tag_spacing: expected the gap between tags over the tag's size, in (0, 1] as "
+                                 f"Kalibr's tagSpacing, got {spacing:g}")
+        if self.family not in APRILTAG_FAMILIES:
+            raise ParameterError(f"family: expected one of {', '.join(APRILTAG_FAMILIES)}, got {self.family!r}")
+        for name, v in (("tags_x", tx), ("tags_y", ty), ("tag_size", size), ("tag_spacing", spacing)):
+            object.__setattr__(self, name, v)
+        if tx * ty > len(self.aruco):
+            raise ParameterError(f"family: a {tx}x{ty} grid needs {tx * ty} tags, more than the {len(self.aruco)} "
+                                 f"of {self.family}; choose a larger family or a smaller grid")
+
+    # -- layout ------------------------------------------------------------------------------
+    @property
+    def aruco(self) -> ArucoDictionary:
+        return get_dictionary(APRILTAG_FAMILIES[self.family])
+
+    @property
+    def n_tags(self) -> int:
+        return self.tags_x * self.tags_y
+
+    @property
+    def pitch(self) -> float:
+        """Distance between neighbouring tags' first corners, metres."""
+        return (1.0 + self.tag_spacing) * self.tag_size
+
+    def tag_places(self) -> np.ndarray:
+        """``(column, row)`` of each tag, (T, 2), in id order."""
+        t = np.arange(self.n_tags)
+        return np.stack([t % self.tags_x, t // self.tags_x], axis=-1)
+
+    def tag_corners(self) -> np.ndarray:
+        """Each tag's corners in the board frame, (T, 4, 2), in the code's order (top-left,
+        top-right, bottom-right, bottom-left of the tag as OpenCV draws the code; on Kalibr's
+        page, turned by a half-turn: bottom-right, bottom-left, top-left, top-right)."""
+        o = self.tag_places() * self.pitch
+        s = self.tag_size
+        off = np.array([[s, 0.0], [0.0, 0.0], [0.0, s], [s, s]])
+        return o[:, None, :] + off[None]
+
+    def tag_point_ids(self) -> np.ndarray:
+        """The point ids of each tag's corners, (T, 4), in the order of :meth:`tag_corners`."""
+        cols = 2 * self.tags_x
+        t = np.arange(self.n_tags)
+        b = (t // self.tags_x) * 2 * cols + (t % self.tags_x) * 2
+        return np.stack([b + 1, b, b + cols, b + cols + 1], axis=-1)
+
+    def object_points(self) -> np.ndarray:
+        """The tags' corners, (4 tags_x tags_y, 3), row by row from the bottom (Kalibr's order)."""
+        r, c = np.mgrid[0:2 * self.tags_y, 0:2 * self.tags_x]
+        x = (c // 2) * self.pitch + (c % 2) * self.tag_size
+        y = (r // 2) * self.pitch + (r % 2) * self.tag_size
+        return np.stack([x.ravel(), y.ravel(), np.zeros(x.size)], axis=-1).astype(np.float64)
+
+    def size_note(self) -> str:
+        return (f"grid ({self.tags_x}x{self.tags_y} tags of {self.tag_size * 1000:g} mm, spacing {self.tag_spacing:g}, "
+                f"{self.family})")
+
+    def sheet(self) -> Sheet:
+        """The tags (border and black bits) and the corner squares, on white; a margin of one
+        corner square beyond the corner squares. The page shows y up (:attr:`Sheet.v_up`)."""
+        s, b = self.tag_size, self.tag_spacing * self.tag_size
+        d = self.aruco
+        n = d.marker_size + 2 * BORDER_BITS
+        cell = s / n
+        rects = []
+        origins = self.tag_places() * self.pitch
+        for t in range(self.n_tags):  # one tag at a time: its black cells as rectangles
+            full = np.zeros((n, n), dtype=np.uint8)
+            full[BORDER_BITS:-BORDER_BITS, BORDER_BITS:-BORDER_BITS] = d.codes[t]
+            r, c = np.nonzero(full == 0)
+            # OpenCV's cell (r, c) of the code lies, on Kalibr's page, turned by a half-turn:
+            # columns run towards -x, rows towards +y.
+            u0, v0 = origins[t]
+            rects.append(np.stack([u0 + (n - 1 - c) * cell, v0 + r * cell, u0 + (n - c) * cell,
+                                   v0 + (r + 1) * cell], axis=-1))
+        # The corner squares, one per place between and around the tags.
+        i, j = np.mgrid[0:self.tags_x + 1, 0:self.tags_y + 1]
+        bu = (i * self.pitch - b).ravel()
+        bv = (j * self.pitch - b).ravel()
+        rects.append(np.stack([bu, bv, bu + b, bv + b], axis=-1))
+        W = self.tags_x * self.pitch - b
+        H = self.tags_y * self.pitch - b
+        label = (f"AprilGrid {self.tags_x}x{self.tags_y} {self.family} tags of {s * 1000:g} mm, spacing "
+                 f"{self.tag_spacing:g} ({b * 1000:g} mm). Print at 100 % (actual size).")
+        return Sheet((-2 * b, -2 * b, W + 2 * b, H + 2 * b), np.concatenate(rects), label, v_up=True)
+
+    @classmethod
+    def example(cls) -> Self:
+        """Kalibr's documented example grid: 6 x 6 tags of 88 mm, spacing 0.3, tag36h11."""
+        return cls(6, 6, 0.088, 0.3, "tag36h11")
+
+    def detect(self, image: np.ndarray) -> Detection:
+        """The tags' corners in ``image`` (see the module docstring)."""
+        return _detect(self, image)
+
+
+def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
+    N = grid.n_points
+    full = _to_grey(image)
+    found, factor = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
+    obj = grid.tag_corners()
+    confirmed, _, _ = confirm_markers(found, obj, grid.tag_places(), 1.0 + grid.tag_spacing, factor)
+    if not confirmed:
+        n_ids = sum(1 for m, c in found.items() if m < grid.n_tags and len(c) == 1)
+        why = ("no tag of the grid" if not n_ids else
+               f"{n_ids} tag(s) of the grid, none confirmed by a neighbour where the layout puts it")
+        return Detection.not_found(N, f"not found: {why} ({grid.family})")
+    places = grid.tag_places()
+    quads = {m: found[m][0] for m in confirmed}
+    # A tag's dark region joined to a corner square puts that corner at the square's far
+    # side: each corner where the tag's neighbours put it a third of a corner square or more
+    # away is taken from them.
+    for m, q in neighbour_quads(obj, places, quads).items():
+        if m in quads:
+            b_px = grid.tag_spacing * np.sqrt(abs(_area(quads[m])))
+            off = np.hypot(*(quads[m] - q).T) > max(2.0 * factor, b_px / 3.0)
+            quads[m] = np.where(off[:, None], q, quads[m])
+    # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
+    quads = recover_markers(full, grid.aruco, BORDER_BITS, obj, places, quads)
+    tags = sorted(quads)
+    ids = grid.tag_point_ids()[tags].ravel()
+    pred = np.concatenate([quads[m] for m in tags])
+    # The tag's side in pixels, and the radius around each corner that holds only the
+    # X-junction: the tag's black border (two bits) and the corner square (the spacing).
+    tag_px = np.repeat([np.sqrt(abs(_area(quads[m]))) for m in tags], 4)
+    out = np.full((N, 2), np.nan)
+    sig = np.full(N, np.nan)
+    win = _refine(grid, full, ids, pred, tag_px, factor, out, sig)
+    side_of = np.zeros(N)
+    side_of[ids] = tag_px
+    # Corners whose quad put them too far off to converge: again, from the corners found
+    # around them (a quadratic map of the grid within a pitch).
+    obj2 = grid.object_points()[:, :2]
+    for _ in range(2):
+        seen = np.isfinite(out).all(axis=1)
+        again = ids[~seen[ids]]
+        if not len(again) or not seen.any():
+            break
+        p2 = predict_points(obj2[seen], out[seen], obj2[again], grid.pitch)
+        ok = np.isfinite(p2).all(axis=1)
+        if not ok.any():
+            break
+        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], factor, out, sig)
+    drop_poor_fits(out, sig)
+    # Every corner against its neighbours (the other corners within 1.6 pitches): one at the
+    # wrong X-junction (a tag's neighbour's corner, a corner square away) misses by that
+    # square, one fitted on a blurred or cut junction by a fraction of it. The tolerance, 6 %
+    # of a tag (0.4 of a corner square at most, 0.6 px at the level read at least), holds the
+    # bend of a fisheye over a pitch and a half (true corners miss by up to 4.5 % of a tag).
+    seen = np.flatnonzero(np.isfinite(out).all(axis=1))
+    tag_side = _tag_px(grid, out)
+    tol = max(0.6 * factor, min(0.06 * tag_side, 0.4 * grid.tag_spacing * tag_side))
+    ok = consistent_points(obj2[seen], out[seen], 1.6 * grid.pitch, np.full(len(seen), tol))
+    out[seen[~ok]] = np.nan
+    sig[seen[~ok]] = np.nan
+    n_found = int(np.isfinite(out).all(axis=1).sum())
+    if n_found == 0:
+        return Detection.not_found(N, f"not found: {len(tags)} tags confirmed, but none of their corners "
+                                      "passes the saddle-point fit")
+    window = int(np.median(win)) if len(win) else 0
+    return Detection(True, out, sig, window,
+                     f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
+
+
+def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray, factor: int,
+            out: np.ndarray, sig: np.ndarray) -> np.ndarray:
+    """The corners ``ids`` at their saddle points from ``pred``, written into ``out`` and
+    ``sig`` where the fit converges within 0.45 of a corner square of the prediction (the
+    nearest other junction is a corner square away) and the point is an X-junction on a
+    circle inside its clean radius (the tag's border and the corner square, the smaller).
+    Returns the windows used."""
+    n_cells = grid.aruco.marker_size + 2 * BORDER_BITS
+    clean = min(BORDER_BITS / n_cells, grid.tag_spacing) * tag_px
+    H, W = full.shape
+    inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
+    ids, pred, tag_px, clean = ids[inside], pred[inside], tag_px[inside], clean[inside]
+    win = np.clip(np.round(clean / 2.5), 2, 5 * factor).astype(int)
+    for r in np.unique(win):  # one fit per window size
+        k = win == r
+        q, sg = refine_patches(full, pred[k], int(r), 1.5 * factor)
+        moved = np.hypot(*(q - pred[k]).T)
+        reach = np.maximum(1.5 * factor, 0.45 * grid.tag_spacing * tag_px[k])
+        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= reach)
+        ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
+        out[ids[k][ok]] = q[ok]
+        sig[ids[k][ok]] = sg[ok]
+    return win
+
+
+def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
+    """A tag's side in pixels: the median over the tags' sides whose two corners are found."""
+    ids = grid.tag_point_ids()
+    have = np.isfinite(out[ids]).all(axis=2)  # (T, 4)
+    sides = []
+    for a, b in ((0, 1), (1, 2), (2, 3), (3, 0)):
+        both = have[:, a] & have[:, b]
+        sides.append(np.hypot(*(out[ids[both, a]] - out[ids[both, b]]).T))
+    s = np.concatenate(sides)
+    return float(np.median(s)) if s.size else 0.0
+
+
+def _area(q: np.ndarray) -> float:
+    """The signed area of the quad ``q`` (4, 2) (shoelace)."""
+    return 0.5 * float(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))

@@ -1,0 +1,179 @@
+"""Kalibr's AprilGrid: its layout and numbering, the printed tags, OpenCV reading the sheet, and
+detection on renders (tilted, partial, fisheye, JPEG)."""
+
+from __future__ import annotations
+
+import io
+
+import cv2
+import numpy as np
+import pytest
+from PIL import Image
+
+from camkit.errors import ParameterError
+from camkit.geometry import Pose
+from camkit.lens import BrownConrady, KannalaBrandt
+from camkit.render import render_target
+from camkit.target import AprilGrid
+
+
+def _kalibr_points(tag_rows: int, tag_cols: int, size: float, spacing: float) -> np.ndarray:
+    """Kalibr's GridCalibrationTargetAprilgrid::createGridPoints, restated: point (r, c) of the
+    2 rows x 2 cols grid, row by row."""
+    rows, cols = 2 * tag_rows, 2 * tag_cols
+    out = np.zeros((rows * cols, 3))
+    for r in range(rows):
+        for c in range(cols):
+            out[r * cols + c] = [(c // 2) * (1 + spacing) * size + (c % 2) * size,
+                                 (r // 2) * (1 + spacing) * size + (r % 2) * size, 0.0]
+    return out
+
+
+@pytest.mark.parametrize("size", [(6, 6), (4, 3), (2, 5), (7, 1)])
+def test_layout_and_ids_are_kalibrs(size):
+    """Object points as Kalibr's createGridPoints; tag t's corners as its computeObservation
+    numbers them (baseId = (t / tagCols) 2 cols + (t % tagCols) 2; corners baseId, +1,
+    +cols+1, +cols for the tag's bottom-left, bottom-right, top-right, top-left)."""
+    tx, ty = size
+    g = AprilGrid(tx, ty, 0.05, 0.25)
+    np.testing.assert_allclose(g.object_points(), _kalibr_points(ty, tx, 0.05, 0.25), atol=1e-15)
+    cols = 2 * tx
+    pts = g.object_points()
+    for t in range(g.n_tags):
+        base = (t // tx) * cols * 2 + (t % tx) * 2
+        bl, br, tr, tl = base, base + 1, base + cols + 1, base + cols
+        ids = g.tag_point_ids()[t]
+        assert set(ids) == {bl, br, tr, tl}
+        # The ids sit where tag_corners puts the tag's corners.
+        np.testing.assert_allclose(pts[ids, :2], g.tag_corners()[t], atol=1e-15)
+        x0, y0 = pts[bl, :2]
+        np.testing.assert_allclose(pts[tr, :2], [x0 + 0.05, y0 + 0.05], atol=1e-15)
+
+
+#: The first two codes of each family as Kalibr's createTargetPDF.py lists them (the AprilTags
+#: C++ library's tagCodes, M. Kaess): published numbers, the oracle of the tag drawing.
+KALIBR_CODES = {"tag36h11": (36, [0xD5D628584, 0xD97F18B49]), "tag25h9": (25, [0x155CBF1, 0x1E4D1B6]),
+                "tag16h5": (16, [0x231B, 0x2EA5])}
+
+
+@pytest.mark.parametrize("family", sorted(KALIBR_CODES))
+def test_tags_are_drawn_as_kalibr_prints_them(family):
+    """Kalibr's rule (createTargetPDF.generateAprilTag): bit n i + j of the code, black where
+    it is 0, the matrix turned by np.rot90(., 2), row i from the top of the page, a black
+    border two bits wide. camkit's printed page (raster, y up) shows the same cells."""
+    nbits, codes = KALIBR_CODES[family]
+    n = int(np.sqrt(nbits))
+    cells = n + 4
+    g = AprilGrid(2, 1, cells * 0.001, 0.5, family)  # one cell = 1 mm
+    sheet = g.sheet()
+    img = sheet.raster(10000.0)  # 10 px a cell
+    u_min, _, _, v_max = sheet.extent
+    for t, code in enumerate(codes):
+        black = np.array([[not code & (1 << (n * i + j)) for j in range(n)] for i in range(n)])
+        want = np.ones((cells, cells), dtype=bool)
+        want[2:-2, 2:-2] = np.rot90(black, 2)
+        u0, v0 = g.tag_corners()[t].min(axis=0)
+        top = v_max - (v0 + g.tag_size)  # the tag's top edge, down the page from its top
+        r0 = round(top * 10000.0)
+        c0 = round((u0 - u_min) * 10000.0)
+        got = img[r0 + 5:r0 + cells * 10:10, c0 + 5:c0 + cells * 10:10] == 0
+        np.testing.assert_array_equal(got, want)
+
+
+def test_opencv_reads_the_printed_sheet():
+    """The page at 4 px/mm given to OpenCV's ArUco detector (DICT_APRILTAG_36h11, a border two
+    bits wide): every tag with its id, its corners where camkit's tag_corners put them."""
+    g = AprilGrid(4, 3, 0.03, 0.3)
+    sheet = g.sheet()
+    img = sheet.raster(4000.0)
+    params = cv2.aruco.DetectorParameters()
+    params.markerBorderBits = 2
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_APRILTAG_36h11), params)
+    corners, ids, _ = det.detectMarkers(img)
+    assert sorted(np.ravel(ids)) == list(range(g.n_tags))
+    u_min, _, _, v_max = sheet.extent
+    for c, i in zip(corners, np.ravel(ids), strict=True):
+        obj = g.tag_corners()[i]
+        page = np.stack([(obj[:, 0] - u_min) * 4000.0 - 0.5, (v_max - obj[:, 1]) * 4000.0 - 0.5], axis=-1)
+        np.testing.assert_allclose(c.reshape(4, 2), page, atol=0.3)
+
+
+CAM = BrownConrady(fx=600.0, fy=600.0, cx=319.5, cy=239.5, k1=-0.1, k2=0.02, width=640, height=480)
+
+
+def _view(grid: AprilGrid, camera, rvec, shift=(0.0, 0.0), distance=1.6) -> Pose:
+    """The printed face towards the camera (the grid's z points at it), turned by rvec."""
+    pts = grid.object_points()
+    c = 0.5 * (pts.min(axis=0) + pts.max(axis=0)) + [*shift, 0.0]
+    R = Pose.from_rvec(rvec, [0.0, 0.0, 0.0]).R @ np.diag([1.0, -1.0, -1.0])
+    t = np.array([0.0, 0.0, distance * np.ptp(pts[:, 0]) * camera.fx / camera.width]) - R @ c
+    return Pose(R, t)
+
+
+def _check(det, truth, grid, min_fraction):
+    """Every corner returned within 0.3 px of its id's truth (a corner at another junction is
+    a corner square off), and at least ``min_fraction`` of the corners of the tags seen whole
+    (a tag cut by the image's edge is not read: its corners carry no id)."""
+    assert det.found, det.message
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert err.max() < 0.3, (err.max(), det.ids[np.argmax(err)])
+    ids = grid.tag_point_ids()
+    whole = ids[truth.visible[ids].all(axis=1)].ravel()
+    assert np.isin(whole, det.ids).sum() >= min_fraction * len(whole), (np.isin(whole, det.ids).sum(), len(whole))
+    return err
+
+
+@pytest.mark.parametrize("rvec", [(0.3, -0.2, 0.1), (-0.6, 0.4, 2.0), (0.9, 0.1, -0.7)])
+def test_tilted_views(rvec):
+    g = AprilGrid.example()
+    img, truth = render_target(CAM, _view(g, CAM, rvec), g)
+    err = _check(g.detect(img), truth, g, 0.98)
+    assert np.median(err) < 0.03
+
+
+def test_a_grid_half_out_of_the_frame_gives_the_corners_it_shows():
+    g = AprilGrid(6, 5, 0.04, 0.3)
+    img, truth = render_target(CAM, _view(g, CAM, (0.2, 0.3, 0.1), shift=(0.14, 0.05), distance=1.1), g)
+    assert 0.3 * g.n_points < truth.visible.sum() < 0.8 * g.n_points
+    det = g.detect(img)
+    _check(det, truth, g, 0.95)
+    assert not np.isfinite(det.corners[~truth.visible]).any()
+
+
+def test_fisheye_and_jpeg():
+    cam = KannalaBrandt(fx=330.0, fy=330.0, cx=319.5, cy=239.5, k1=0.02, k2=-0.01, k3=0.0, k4=0.0, width=640,
+                        height=480)
+    g = AprilGrid(5, 4, 0.04, 0.3)
+    img, truth = render_target(cam, _view(g, cam, (0.3, -0.5, 0.2), shift=(0.03, 0.0), distance=1.3), g)
+    buf = io.BytesIO()
+    Image.fromarray(np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)).save(buf, "JPEG", quality=75)
+    jpeg = np.asarray(Image.open(io.BytesIO(buf.getvalue())))
+    _check(g.detect(jpeg), truth, g, 0.95)
+
+
+def test_the_grid_seen_from_behind_is_not_read():
+    """A mirrored print (the grid seen through the paper) holds no code of the family's:
+    nothing is returned rather than mirrored labels."""
+    g = AprilGrid.example()
+    R = Pose.from_rvec((0.2, -0.1, 0.1), [0.0, 0.0, 0.0]).R  # z away from the camera: the back
+    pts = g.object_points()
+    t = np.array([0.0, 0.0, 1.6 * np.ptp(pts[:, 0]) * CAM.fx / CAM.width]) - R @ pts.mean(axis=0)
+    img, _ = render_target(CAM, Pose(R, t), g)
+    det = g.detect(img)
+    assert not det.found and det.message.startswith("not found")
+
+
+def test_bad_input():
+    with pytest.raises(ParameterError, match="family"):
+        AprilGrid(6, 6, 0.088, 0.3, "tag99h9")
+    with pytest.raises(ParameterError, match="tag_spacing"):
+        AprilGrid(6, 6, 0.088, 1.5)
+    with pytest.raises(ParameterError, match="tag_spacing"):
+        AprilGrid(6, 6, 0.088, 0.0)
+    with pytest.raises(ParameterError, match="family: a 6x6 grid needs 36 tags"):
+        AprilGrid(6, 6, 0.088, 0.3, "tag16h5")
+    with pytest.raises(ParameterError, match="tags_x, tags_y"):
+        AprilGrid(1, 1, 0.088, 0.3)
+    with pytest.raises(ParameterError, match="tag_size"):
+        AprilGrid(6, 6, -0.088, 0.3)
