@@ -229,6 +229,11 @@ def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np
     return quads, codes, turns
 
 
+def quad_area(q: np.ndarray) -> float:
+    """The signed area of the quad ``q`` (4, 2), by the shoelace formula."""
+    return 0.5 * float(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))
+
+
 def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,
                     factor: int) -> tuple[list[int], dict[int, np.ndarray], dict[int, float]]:
     """The board's markers among ``found`` (:func:`find_markers`) that a neighbour confirms.
@@ -250,9 +255,7 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
         hs = fit_homographies(obj[ids], np.stack([found[m][0] for m in ids]))
         homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
         ids = [m for m in ids if m in homs]
-    pitch = {m: np.sqrt(abs(0.5 * np.sum(found[m][0][:, 0] * np.roll(found[m][0][:, 1], -1)
-                                       - np.roll(found[m][0][:, 0], -1) * found[m][0][:, 1]))) * step
-             for m in ids}
+    pitch = {m: np.sqrt(abs(quad_area(found[m][0]))) * step for m in ids}
     agree = dict.fromkeys(ids, 0)
     disagree = dict.fromkeys(ids, 0)
     pairs = [(m, j) for a, m in enumerate(ids) for j in ids[a + 1:] if np.abs(grid[j] - grid[m]).max() <= 2]

@@ -23,12 +23,24 @@ Layout, object points and ids are Kalibr's (``GridCalibrationTargetAprilgrid`` a
 The codes are OpenCV's AprilTag dictionaries (:mod:`camkit.target.aruco`; AprilRobotics's
 families).
 
-Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.target._markers`:
-dark quads, cells read against the family with its error correction, ids checked against the
-board and confirmed by a neighbour), then places each confirmed tag's four corners at their
-saddle points (camkit's sub-pixel estimator, not the quad's corners), with their sigma; a corner
-that moves more than a tenth of a tag (1.5 px at least), that is not an X-junction on a circle
-inside its corner square, or whose fit is over twice the median sigma, is dropped.
+Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.target._markers`):
+
+1. dark quads of an adaptive threshold, opened by a 3 x 3 cross (a tag touches its corner
+   squares at a point); a quad that reads as no code is read again as a tag with corner
+   squares joined at some of its corners (a blurred junction joins them);
+2. the cells read against the family with its error correction, ids checked against the grid
+   and confirmed by a neighbour (one homography through both tags' corners);
+3. a confirmed tag's corner that its neighbours put a third of a corner square or more away is
+   taken from them, and tags not read are read where their neighbours put them;
+4. each corner at its saddle point (camkit's sub-pixel estimator, the window and the
+   X-junction's circle scaled by the tag's narrowest side: a tilted tag's border and corner
+   squares are narrow across the tilt), with its sigma; a fit that does not converge, moves
+   more than 0.45 of a corner square (the next junction is a square away) or is not an
+   X-junction is dropped, and tried again from the corners found around it;
+5. each tag is read again through its corners as found: a tag that no longer reads as itself
+   (a corner at another junction or in a corner square turns its cells) loses its corners;
+6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
+   of a tag; a fisheye's bend over that reach is under 4.5 %), worst first.
 """
 
 from __future__ import annotations
@@ -48,6 +60,8 @@ from camkit.target._markers import (
     is_x_corner,
     neighbour_quads,
     predict_points,
+    quad_area,
+    read_markers,
     recover_markers,
     refine_patches,
 )
@@ -213,7 +227,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # away is taken from them.
     for m, q in neighbour_quads(obj, places, quads).items():
         if m in quads:
-            b_px = grid.tag_spacing * np.sqrt(abs(_area(quads[m])))
+            b_px = grid.tag_spacing * np.sqrt(abs(quad_area(quads[m])))
             off = np.hypot(*(quads[m] - q).T) > max(2.0 * factor, b_px / 3.0)
             quads[m] = np.where(off[:, None], q, quads[m])
     # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
@@ -221,9 +235,10 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     tags = sorted(quads)
     ids = grid.tag_point_ids()[tags].ravel()
     pred = np.concatenate([quads[m] for m in tags])
-    # The tag's side in pixels, and the radius around each corner that holds only the
-    # X-junction: the tag's black border (two bits) and the corner square (the spacing).
-    tag_px = np.repeat([np.sqrt(abs(_area(quads[m]))) for m in tags], 4)
+    # The tag's narrowest side in pixels (a tilted tag is narrow across its tilt, and so are
+    # its border and corner squares): the scale of the window, the X-junction's circle and the
+    # reach of the fit.
+    tag_px = np.repeat([_narrowest(quads[m]) for m in tags], 4)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
     win = _refine(grid, full, ids, pred, tag_px, factor, out, sig)
@@ -243,6 +258,19 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
             break
         _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], factor, out, sig)
     drop_poor_fits(out, sig)
+    # Each tag read again through its corners as found (the quad's where one is missing): a
+    # corner at another junction, or in a corner square, turns the tag's cells and border
+    # away from its code; such a tag's corners go.
+    tid = grid.tag_point_ids()[tags]  # (T, 4)
+    at = np.where(np.isfinite(out[tid]).all(axis=2)[:, :, None], out[tid], np.stack([quads[m] for m in tags]))
+    got = np.isfinite(out[tid]).all(axis=2).any(axis=1)
+    if got.any():
+        t_arr = np.asarray(tags)
+        k = np.flatnonzero(got)
+        codes, turns = read_markers(full, at[k], grid.aruco, BORDER_BITS)
+        drop = tid[k[(codes != t_arr[k]) | (turns != 0)]].ravel()
+        out[drop] = np.nan
+        sig[drop] = np.nan
     # Every corner against its neighbours (the other corners within 1.6 pitches): one at the
     # wrong X-junction (a tag's neighbour's corner, a corner square away) misses by that
     # square, one fitted on a blurred or cut junction by a fraction of it. The tolerance, 6 %
@@ -288,6 +316,11 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
     return win
 
 
+def _narrowest(q: np.ndarray) -> float:
+    """The shortest side of the quad ``q`` (4, 2), pixels."""
+    return float(np.hypot(*(q - np.roll(q, 1, axis=0)).T).min())
+
+
 def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
     """A tag's side in pixels: the median over the tags' sides whose two corners are found."""
     ids = grid.tag_point_ids()
@@ -299,7 +332,3 @@ def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
     s = np.concatenate(sides)
     return float(np.median(s)) if s.size else 0.0
 
-
-def _area(q: np.ndarray) -> float:
-    """The signed area of the quad ``q`` (4, 2) (shoelace)."""
-    return 0.5 * float(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))

@@ -49,8 +49,16 @@ import numpy as np
 
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
-from camkit.target._homography import apply_homography, fit_homography
-from camkit.target._markers import confirm_markers, drop_poor_fits, find_markers, is_x_corner, refine_patches
+from camkit.target._homography import apply_homography, fit_homographies
+from camkit.target._markers import (
+    confirm_markers,
+    drop_poor_fits,
+    find_markers,
+    is_x_corner,
+    quad_area,
+    recover_markers,
+    refine_patches,
+)
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
 from camkit.target.checkerboard import _to_grey
@@ -189,6 +197,18 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         why = ("no marker of the board" if not n_ids else
                f"{n_ids} marker(s) of the board, none confirmed by a neighbour where the layout puts it")
         return Detection.not_found(N, f"not found: {why} (dictionary {board.dictionary})")
+    # Markers not read (blurred, or their quad not found) where their confirmed neighbours put
+    # them: kept where they read as their own id, the right way up.
+    quads = recover_markers(full, board.aruco, 1, obj, ms, {m: found[m][0] for m in confirmed})
+    extra = [m for m in quads if m not in homs]
+    if extra:
+        hs = fit_homographies(obj[extra], np.stack([quads[m] for m in extra]))
+        for m, h, q in zip(extra, hs, (quads[m] for m in extra), strict=True):
+            if np.isfinite(h).all():
+                homs[m] = h
+                found[m] = [q]
+                side_px[m] = np.sqrt(abs(quad_area(q))) * board.square / board.marker
+                confirmed.append(m)
     # 4. Chessboard corners next to confirmed markers, predicted, then at their saddle points.
     sx = board.squares_x
     pred_sum = np.zeros((N, 2))
@@ -207,15 +227,22 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # Where two confirmed markers touch a corner (its four squares), the prediction is their
     # least-squares homography's (one marker's quad read a pixel off at a thin margin weighs
     # half; a wider neighbourhood bends away from a homography through a fisheye).
-    conf_sq = ms[confirmed]
-    for i, cid in enumerate(cand):  # one small fit per corner
-        cx, cy = cid % (sx - 1) + 1, cid // (sx - 1) + 1
-        near = [m for m, (x, y) in zip(confirmed, conf_sq, strict=True)
-                if cx - 1 <= x <= cx and cy - 1 <= y <= cy]
-        if len(near) >= 2:
-            Hn = fit_homography(np.concatenate([obj[m] for m in near]), np.concatenate([found[m][0] for m in near]))
-            if Hn is not None:
-                pred[i] = apply_homography(Hn, np.array([[cx * board.square, cy * board.square]]))[0]
+    conf = np.asarray(confirmed)
+    cxy = np.stack([cand % (sx - 1) + 1, cand // (sx - 1) + 1], axis=-1)
+    sq = ms[conf]
+    touch = ((sq[None, :, 0] >= cxy[:, None, 0] - 1) & (sq[None, :, 0] <= cxy[:, None, 0])
+             & (sq[None, :, 1] >= cxy[:, None, 1] - 1) & (sq[None, :, 1] <= cxy[:, None, 1]))  # (corner, marker)
+    count = touch.sum(axis=1)
+    img_q = np.stack([found[m][0] for m in confirmed])
+    for c in np.unique(count[count >= 2]):  # one batched fit per number of touching markers
+        rows = np.flatnonzero(count == c)
+        mk = np.stack([np.flatnonzero(touch[r]) for r in rows])  # (K, c) indices into confirmed
+        Hn = fit_homographies(obj[conf[mk]].reshape(len(rows), 4 * c, 2), img_q[mk].reshape(len(rows), 4 * c, 2))
+        p = np.einsum("kij,kj->ki", Hn, np.c_[cxy[rows] * board.square, np.ones(len(rows))])
+        with np.errstate(divide="ignore", invalid="ignore"):
+            q = p[:, :2] / p[:, 2:]
+        good = np.isfinite(q).all(axis=1)
+        pred[rows[good]] = q[good]
     H, W = full.shape
     inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
     cand, pred = cand[inside], pred[inside]

@@ -153,7 +153,8 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
         c = vals @ pinv.T
         a, b, cc, d, e = c[:, 0], c[:, 1], c[:, 2], c[:, 3], c[:, 4]
         det = 4 * a * cc - b * b
-        step = np.stack([(-2 * cc * d + b * e) / det, (b * d - 2 * a * e) / det], -1)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a flat patch: no step
+            step = np.stack([(-2 * cc * d + b * e) / det, (b * d - 2 * a * e) / det], -1)
         q += np.clip(np.nan_to_num(step, nan=0.0), -1.0, 1.0)
     vals = _sample(s, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
     c = vals @ pinv.T
