@@ -24,17 +24,10 @@ Run: ``python -m benchmarks.aprilgrid_corpus [--views 500] [--start 0]``.
 
 from __future__ import annotations
 
-import argparse
-import io
-import time
-from collections import Counter
-
 import cv2
 import numpy as np
-from PIL import Image
 
-from camkit.render import render_target
-from camkit.render.stress import _blur, _camera, _pose
+from benchmarks.charuco_corpus import cli, place_and_render, score
 from camkit.target import APRILTAG_FAMILIES, AprilGrid
 
 
@@ -43,30 +36,10 @@ def view(seed: int):
     tx, ty = int(rng.integers(3, 9)), int(rng.integers(3, 8))
     family = "tag25h9" if tx * ty <= 35 and rng.random() < 0.3 else "tag36h11"
     grid = AprilGrid(tx, ty, 0.03, float(rng.uniform(0.2, 0.4)), family)
-    camera, kind = _camera(rng, (0.3, 4.0))
-    partial = rng.random() < 1 / 3
-    for _ in range(20):
-        pose = _pose(rng, camera, grid, float(rng.uniform(20, 150)), partial, True, square=grid.tag_size)
-        if pose is not None:
-            break
-    else:
-        return None
-    img, truth = render_target(camera, pose, grid)
-    sigma = float(rng.uniform(0, 1.5))
-    if sigma > 0.3:
-        img = _blur(img, sigma)
-    noisy = rng.random() < 2 / 3
-    if noisy:
-        img = img + rng.normal(0, rng.uniform(0.005, 0.03), img.shape)
-    u8 = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
-    if noisy:
-        buf = io.BytesIO()
-        Image.fromarray(u8).save(buf, format="JPEG", quality=int(rng.integers(60, 96)))
-        u8 = np.asarray(Image.open(buf).convert("L"))
-    return grid, camera, kind, pose, u8, truth, noisy
+    return place_and_render(rng, grid, (20, 150), True, grid.tag_size)
 
 
-def eligible(grid: AprilGrid, camera, truth) -> np.ndarray:
+def eligible(grid: AprilGrid, camera, _pose, truth) -> np.ndarray:
     """The corners of tags wholly inside the frame whose sides span 2 px a cell or more."""
     ids = grid.tag_point_ids()
     c = truth.corners_px[ids]  # (T, 4, 2)
@@ -101,58 +74,11 @@ def opencv_corners(grid: AprilGrid, img: np.ndarray) -> tuple[np.ndarray, np.nda
 
 
 def run(views: int, start: int = 0) -> dict:
-    stats = Counter()
-    err_clean, err_noisy, cv_err, ck_err = [], [], [], []
-    wrong_views = []
-    t = 0.0
-    for seed in range(start, start + views):
-        v = view(seed)
-        if v is None:
-            stats["unplaced"] += 1
-            continue
-        grid, camera, _, _, img, truth, noisy = v
-        stats["views"] += 1
-        t0 = time.perf_counter()
-        det = grid.detect(img)
-        t += time.perf_counter() - t0
-        d = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
-        wrong = int((d > 1.0).sum())
-        stats["corners returned"] += len(d)
-        stats["wrong"] += wrong
-        if wrong:
-            wrong_views.append(seed)
-        (err_noisy if noisy else err_clean).extend(d[d <= 1.0].tolist())
-        el = eligible(grid, camera, truth)
-        stats["eligible"] += int(el.sum())
-        stats["eligible found"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
-        ci, cc = opencv_corners(grid, img)
-        stats["opencv corners"] += len(ci)
-        stats["opencv wrong"] += int((np.hypot(*(cc - truth.corners_px[ci]).T) > 1.0).sum())
-        missed = ~np.isin(ci, det.ids)
-        stats["opencv corners camkit misses"] += int(missed.sum())
-        both = ~missed
-        cv_err.extend(np.hypot(*(cc[both] - truth.corners_px[ci[both]]).T).tolist())
-        ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
-    out = dict(stats)
-    out["found %"] = 100.0 * stats["eligible found"] / max(stats["eligible"], 1)
-    out["error median noise-free px"] = float(np.median(err_clean)) if err_clean else float("nan")
-    out["error 95th noisy px"] = float(np.percentile(err_noisy, 95)) if err_noisy else float("nan")
-    out["camkit median on corners both find"] = float(np.median(ck_err)) if ck_err else float("nan")
-    out["opencv median on corners both find"] = float(np.median(cv_err)) if cv_err else float("nan")
-    out["ms a view"] = 1e3 * t / max(stats["views"], 1)
-    out["views with wrong ids"] = wrong_views
-    return out
+    return score(views, start, view, eligible, opencv_corners)
 
 
 def main() -> None:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.aprilgrid_corpus")
-    p.add_argument("--views", type=int, default=500)
-    p.add_argument("--start", type=int, default=0)
-    a = p.parse_args()
-    t0 = time.perf_counter()
-    for k, v in run(a.views, a.start).items():
-        print(f"{k}: {v:.4g}" if isinstance(v, float) else f"{k}: {v}")
-    print(f"({time.perf_counter() - t0:.0f} s)")
+    cli("python -m benchmarks.aprilgrid_corpus", run)
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import argparse
 import io
 import time
 from collections import Counter
+from collections.abc import Callable
 
 import cv2
 import numpy as np
@@ -39,15 +40,31 @@ def view(seed: int):
     rng = np.random.default_rng(seed)
     board = Charuco(int(rng.integers(5, 13)), int(rng.integers(4, 10)), 0.03, 0.03 * rng.uniform(0.55, 0.8),
                     str(rng.choice(DICTS)), legacy=bool(rng.random() < 0.3))
+    return place_and_render(rng, board, (15, 120), False)
+
+
+def place_and_render(rng: np.random.Generator, board, size_px: tuple[float, float], face_z: bool,
+                     unit: float | None = None):
+    """(board, camera, lens kind, pose, uint8 image, truth, noisy) for ``board``: a stress-corpus
+    camera (0.3-4 MP), a pose with ``unit`` (default a square) spanning ``size_px`` pixels, a
+    third of the views partly outside the frame, seen from +z if ``face_z``; then
+    :func:`degrade`. None where no pose fits."""
     camera, kind = _camera(rng, (0.3, 4.0))
     partial = rng.random() < 1 / 3
     for _ in range(20):
-        pose = _pose(rng, camera, board, float(rng.uniform(15, 120)), partial, False)
+        pose = _pose(rng, camera, board, float(rng.uniform(*size_px)), partial, face_z, square=unit)
         if pose is not None:
             break
     else:
         return None
     img, truth = render_target(camera, pose, board)
+    u8, noisy = degrade(rng, img)
+    return board, camera, kind, pose, u8, truth, noisy
+
+
+def degrade(rng: np.random.Generator, img: np.ndarray) -> tuple[np.ndarray, bool]:
+    """(uint8 image, noisy): Gaussian blur of 0-1.5 px, and in two views of three sensor-like
+    noise and JPEG compression (quality 60-95, Pillow)."""
     sigma = float(rng.uniform(0, 1.5))
     if sigma > 0.3:
         img = _blur(img, sigma)
@@ -59,7 +76,7 @@ def view(seed: int):
         buf = io.BytesIO()
         Image.fromarray(u8).save(buf, format="JPEG", quality=int(rng.integers(60, 96)))
         u8 = np.asarray(Image.open(buf).convert("L"))
-    return board, camera, kind, pose, u8, truth, noisy
+    return u8, noisy
 
 
 def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
@@ -75,13 +92,27 @@ def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
     return inside & (step >= 15)
 
 
-def run(views: int, start: int = 0) -> dict:
+def opencv_corners(board: Charuco, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ids, pixels) of the ChArUco corners OpenCV's CharucoDetector returns."""
+    cvb = cv2.aruco.CharucoBoard((board.squares_x, board.squares_y), board.square, board.marker,
+                                 cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary)))
+    cvb.setLegacyPattern(board.legacy)
+    cc, ci, _, _ = cv2.aruco.CharucoDetector(cvb).detectBoard(img)
+    if ci is None:
+        return np.zeros(0, np.int64), np.zeros((0, 2))
+    return np.ravel(ci), cc.reshape(-1, 2)
+
+
+def score(views: int, start: int, make_view: Callable, is_eligible: Callable, opencv: Callable) -> dict:
+    """Detect ``views`` views from ``make_view(seed)`` (None: not placed) and score them against
+    the truth and OpenCV's ``opencv(board, image) -> (ids, pixels)``; ``is_eligible(board,
+    camera, pose, truth)`` marks the points that should be found."""
     stats = Counter()
     err_clean, err_noisy, cv_err, ck_err = [], [], [], []
     wrong_views = []
     t = 0.0
     for seed in range(start, start + views):
-        v = view(seed)
+        v = make_view(seed)
         if v is None:
             stats["unplaced"] += 1
             continue
@@ -97,23 +128,17 @@ def run(views: int, start: int = 0) -> dict:
         if wrong:
             wrong_views.append(seed)
         (err_noisy if noisy else err_clean).extend(d[d <= 1.0].tolist())
-        el = eligible(board, camera, pose, truth)
+        el = is_eligible(board, camera, pose, truth)
         stats["eligible"] += int(el.sum())
         stats["eligible found"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
-        cvb = cv2.aruco.CharucoBoard((board.squares_x, board.squares_y), board.square, board.marker,
-                                     cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary)))
-        cvb.setLegacyPattern(board.legacy)
-        cc, ci, _, _ = cv2.aruco.CharucoDetector(cvb).detectBoard(img)
-        if ci is not None:
-            ci = np.ravel(ci)
-            cc = cc.reshape(-1, 2)
-            stats["opencv corners"] += len(ci)
-            stats["opencv wrong"] += int((np.hypot(*(cc - truth.corners_px[ci]).T) > 1.0).sum())
-            missed = ~np.isin(ci, det.ids)
-            stats["opencv ids camkit misses"] += int(missed.sum())
-            both = ~missed
-            cv_err.extend(np.hypot(*(cc[both] - truth.corners_px[ci[both]]).T).tolist())
-            ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
+        ci, cc = opencv(board, img)
+        stats["opencv corners"] += len(ci)
+        stats["opencv wrong"] += int((np.hypot(*(cc - truth.corners_px[ci]).T) > 1.0).sum())
+        missed = ~np.isin(ci, det.ids)
+        stats["opencv ids camkit misses"] += int(missed.sum())
+        both = ~missed
+        cv_err.extend(np.hypot(*(cc[both] - truth.corners_px[ci[both]]).T).tolist())
+        ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
     out = dict(stats)
     out["found %"] = 100.0 * stats["eligible found"] / max(stats["eligible"], 1)
     out["error median noise-free px"] = float(np.median(err_clean)) if err_clean else float("nan")
@@ -125,16 +150,24 @@ def run(views: int, start: int = 0) -> dict:
     return out
 
 
-def main() -> None:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.charuco_corpus")
+def run(views: int, start: int = 0) -> dict:
+    return score(views, start, view, eligible, opencv_corners)
+
+
+def cli(prog: str, run_views: Callable) -> None:
+    """``prog [--views 500] [--start 0]``: run and print the scores."""
+    p = argparse.ArgumentParser(prog=prog)
     p.add_argument("--views", type=int, default=500)
     p.add_argument("--start", type=int, default=0)
     a = p.parse_args()
     t0 = time.perf_counter()
-    res = run(a.views, a.start)
-    for k, v in res.items():
+    for k, v in run_views(a.views, a.start).items():
         print(f"{k}: {v:.4g}" if isinstance(v, float) else f"{k}: {v}")
     print(f"({time.perf_counter() - t0:.0f} s)")
+
+
+def main() -> None:
+    cli("python -m benchmarks.charuco_corpus", run)
 
 
 if __name__ == "__main__":

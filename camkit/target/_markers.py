@@ -229,6 +229,15 @@ def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np
     return quads, codes, turns
 
 
+def unconfirmed_reason(found: dict[int, list[np.ndarray]], n_markers: int, noun: str, whole: str) -> str:
+    """Why nothing was confirmed, in words: no ``noun`` of the ``whole`` read, or how many were
+    read and not confirmed by a neighbour."""
+    n = sum(1 for m, c in found.items() if m < n_markers and len(c) == 1)
+    if not n:
+        return f"no {noun} of the {whole}"
+    return f"{n} {noun}(s) of the {whole}, none confirmed by a neighbour where the layout puts it"
+
+
 def quad_area(q: np.ndarray) -> float:
     """The signed area of the quad ``q`` (4, 2), by the shoelace formula."""
     return 0.5 * float(np.sum(q[:, 0] * np.roll(q[:, 1], -1) - np.roll(q[:, 0], -1) * q[:, 1]))

@@ -64,6 +64,7 @@ from camkit.target._markers import (
     read_markers,
     recover_markers,
     refine_patches,
+    unconfirmed_reason,
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
@@ -216,10 +217,8 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     obj = grid.tag_corners()
     confirmed, _, _ = confirm_markers(found, obj, grid.tag_places(), 1.0 + grid.tag_spacing, factor)
     if not confirmed:
-        n_ids = sum(1 for m, c in found.items() if m < grid.n_tags and len(c) == 1)
-        why = ("no tag of the grid" if not n_ids else
-               f"{n_ids} tag(s) of the grid, none confirmed by a neighbour where the layout puts it")
-        return Detection.not_found(N, f"not found: {why} ({grid.family})")
+        return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
+                                      f"({grid.family})")
     places = grid.tag_places()
     quads = {m: found[m][0] for m in confirmed}
     # A tag's dark region joined to a corner square puts that corner at the square's far

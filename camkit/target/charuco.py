@@ -58,6 +58,7 @@ from camkit.target._markers import (
     quad_area,
     recover_markers,
     refine_patches,
+    unconfirmed_reason,
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
@@ -193,9 +194,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     obj = board.marker_corners()[:, :, :2]
     confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if not confirmed:
-        n_ids = sum(1 for m, c in found.items() if m < len(ms) and len(c) == 1)
-        why = ("no marker of the board" if not n_ids else
-               f"{n_ids} marker(s) of the board, none confirmed by a neighbour where the layout puts it")
+        why = unconfirmed_reason(found, len(ms), "marker", "board")
         return Detection.not_found(N, f"not found: {why} (dictionary {board.dictionary})")
     # Markers not read (blurred, or their quad not found) where their confirmed neighbours put
     # them: kept where they read as their own id, the right way up.
