@@ -618,8 +618,8 @@ def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: f
     if keep.all() or keep.sum() < 10 or np.ptp(g[keep], axis=0).min() < 2:
         return keep
     gk, qk = g[keep].astype(np.float64), q[keep]
-    lm = _LensMap(shape, free_centre=len(gk) >= 20)
-    p = lm.fit(gk, qk)
+    lm = _LensMap(shape, len(gk) >= 20, gk)
+    p = lm.fit(gk, qk, near=4.0 * tol)
     if p is None:
         return keep
     lo, hi = gk.min(axis=0), gk.max(axis=0)
@@ -644,37 +644,51 @@ class _LensMap:
     undistortion ``d / (1 + l1 |d|^2)`` is u), then ``x = c + d (1 + l2 |d|^2)``, in
     coordinates centred on the image and scaled by half its larger side."""
 
-    def __init__(self, shape: tuple[int, ...], free_centre: bool) -> None:
+    def __init__(self, shape: tuple[int, ...], free_centre: bool, lattice: np.ndarray) -> None:
         self.centre = np.array([shape[1] - 1, shape[0] - 1]) / 2.0
         self.f = max(shape[:2]) / 2.0
         self.n = 12 if free_centre else 9  # l2 and c held at 0 unless the centre is free
+        # The lattice centred and scaled too (the homography's entries of one size: LM then
+        # converges in a few steps, not a hundred).
+        self.g0 = lattice.mean(axis=0)
+        self.gs = max(float(np.sqrt(((lattice - self.g0) ** 2).sum(axis=1).mean())), 1e-9)
 
     def _map(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
         p = np.r_[p, np.zeros(12 - len(p))]
-        h = np.c_[g, np.ones(len(g))] @ np.r_[p[:8], 1.0].reshape(3, 3).T
+        h = np.c_[(g - self.g0) / self.gs, np.ones(len(g))] @ np.r_[p[:8], 1.0].reshape(3, 3).T
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
             u = h[:, :2] / h[:, 2:] - p[10:12]
             r2 = (u * u).sum(axis=1)
             d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * p[8] * r2, 0.0))))[:, None]
             return p[10:12] + d * (1.0 + p[9] * (d * d).sum(axis=1))[:, None]
 
-    def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None) -> np.ndarray | None:
+    def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
+            near: float = np.inf) -> np.ndarray | None:
+        """Least squares (Levenberg-Marquardt) from ``start``, else from the best of a few
+        division-model strengths with a homography each (the division model undistorts
+        in closed form); None where that best start misses a point by more than ``near``
+        pixels (no such lens is near), where it is the undistorted one (a homography: the
+        local quadratic check already follows it), or where the fit fails."""
         from scipy.optimize import least_squares
 
         qn = (q - self.centre) / self.f
-        starts = [start] if start is not None else []
+        gn = (g - self.g0) / self.gs
         if start is None:
-            for lam in (0.0, -0.5, -1.0):
-                H0 = fit_homography(g, qn / (1.0 + lam * (qn * qn).sum(axis=1, keepdims=True)))
-                if H0 is not None and abs(H0[2, 2]) > 1e-12:
-                    starts.append(np.r_[(H0 / H0[2, 2]).ravel()[:8], lam, np.zeros(self.n - 9)])
-        best = None
-        for p0 in starts:
-            with np.errstate(all="ignore"):
-                r = least_squares(lambda p: (self._map(p, g) - qn).ravel(), p0, method="lm", max_nfev=300)
-            if np.isfinite(r.cost) and (best is None or r.cost < best.cost):
-                best = r
-        return None if best is None else best.x
+            best_start, best_miss = None, np.inf
+            for lam in (0.0, -0.25, -0.5, -0.75, -1.0):
+                H0 = fit_homography(gn, qn / (1.0 + lam * (qn * qn).sum(axis=1, keepdims=True)))
+                if H0 is None or not abs(H0[2, 2]) > 1e-12:
+                    continue
+                p0 = np.r_[(H0 / H0[2, 2]).ravel()[:8], lam, np.zeros(self.n - 9)]
+                miss = float(np.max(np.hypot(*((self._map(p0, g) - qn) * self.f).T)))
+                if miss < best_miss:
+                    best_start, best_miss = p0, miss
+            if best_start is None or not best_miss <= near or best_start[8] == 0.0:
+                return None
+            start = best_start
+        with np.errstate(all="ignore"):
+            r = least_squares(lambda p: (self._map(p, g) - qn).ravel(), start, method="lm", max_nfev=40 * self.n)
+        return r.x if np.isfinite(r.cost) else None
 
     def predict(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
         return self._map(p, g) * self.f + self.centre
