@@ -215,11 +215,11 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     full = _to_grey(image)
     found, factor = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
     obj = grid.tag_corners()
-    confirmed, _, _ = confirm_markers(found, obj, grid.tag_places(), 1.0 + grid.tag_spacing, factor)
+    places = grid.tag_places()
+    confirmed, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor)
     if not confirmed:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
                                       f"({grid.family})")
-    places = grid.tag_places()
     quads = {m: found[m][0] for m in confirmed}
     # A tag's dark region joined to a corner square puts that corner at the square's far
     # side: each corner where the tag's neighbours put it a third of a corner square or more
