@@ -117,7 +117,7 @@ class AprilGrid(Target):
         if spacing > 1.0:
             raise ParameterError(f"tag_spacing: expected the gap between tags over the tag's size, in (0, 1] as "
                                  f"Kalibr's tagSpacing, got {spacing:g}")
-        if self.family not in APRILTAG_FAMILIES:
+        if not isinstance(self.family, str) or self.family not in APRILTAG_FAMILIES:
             raise ParameterError(f"family: expected one of {', '.join(APRILTAG_FAMILIES)}, got {self.family!r}")
         for name, v in (("tags_x", tx), ("tags_y", ty), ("tag_size", size), ("tag_spacing", spacing)):
             object.__setattr__(self, name, v)

@@ -10,7 +10,7 @@ import numpy as np
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
-from camkit.errors import ParameterError
+from camkit.errors import ParameterError, ShapeError
 from camkit.target._homography import fit_homography
 from camkit.target.base import Detection, Sheet, Target, register_target
 
@@ -108,6 +108,9 @@ def _to_grey(image: np.ndarray) -> np.ndarray:
     """The image as float64 grey (the mean of R, G and B; alpha ignored), stretched so that its
     1st percentile is 0 and its 99th is 1."""
     img = as_image(image, "image")
+    if img.dtype.kind == "f" and not np.isfinite(img).all():
+        bad = int(np.count_nonzero(~np.isfinite(img)))
+        raise ShapeError(f"image: expected finite values, got {bad} NaN or infinite sample(s) of {img.size}")
     scale = 1.0 / np.iinfo(img.dtype).max if img.dtype.kind == "u" else 1.0
     g = np.empty(img.shape[:2])
     detect_kernels.grey_mean(img if img.ndim == 3 else img[:, :, None], scale, g)

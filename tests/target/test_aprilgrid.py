@@ -169,6 +169,12 @@ def test_the_grid_seen_from_behind_is_not_read():
 def test_bad_input():
     with pytest.raises(ParameterError, match="family"):
         AprilGrid(6, 6, 0.088, 0.3, "tag99h9")
+    with pytest.raises(ParameterError, match="family"):
+        AprilGrid(6, 6, 0.088, 0.3, ["tag36h11"])
+    with pytest.raises(ParameterError, match="tag_spacing"):
+        AprilGrid(6, 6, 0.088, float("nan"))
+    with pytest.raises(ParameterError, match="tags_x"):
+        AprilGrid(6.5, 6, 0.088, 0.3)
     with pytest.raises(ParameterError, match="tag_spacing"):
         AprilGrid(6, 6, 0.088, 1.5)
     with pytest.raises(ParameterError, match="tag_spacing"):

@@ -87,6 +87,19 @@ def test_render_detect_recover_the_truth(target_cls):
     assert np.isfinite(det.sigma).all() and (det.sigma > 0).all()
 
 
+@pytest.mark.parametrize("image,message", [
+    (np.full((60, 80), np.nan), "image: expected finite values"),
+    (np.full((60, 80), np.inf, dtype=np.float32), "image: expected finite values"),
+    (np.zeros((0, 80)), "image: expected a non-empty image"),
+    (np.zeros((60, 80), dtype=bool), "image: expected dtype"),
+    (np.zeros(80), "image: expected shape"),
+    ([[0.0, 1.0]], "image: expected a NumPy array"),
+])
+def test_bad_images_are_refused_naming_the_image(target_cls, image, message):
+    with pytest.raises(CamkitError, match=message):
+        target_cls.example().detect(image)
+
+
 def test_nothing_in_view_is_not_found_with_a_reason(target_cls):
     target = target_cls.example()
     det = target.detect(np.full((240, 320), 0.5))
