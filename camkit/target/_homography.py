@@ -46,14 +46,18 @@ def homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
     (in ``dst``'s units) by which the least-squares homography misses a point; inf where none
     is fitted."""
-    H = fit_homographies(src, dst)
-    q = np.einsum("kij,kpj->kpi", H, np.concatenate([src, np.ones(src.shape[:2] + (1,))], axis=2))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        miss = np.hypot(*(q[:, :, :2] / q[:, :, 2:] - dst).transpose(2, 0, 1)).max(axis=1)
+    miss = np.hypot(*(apply_homographies(fit_homographies(src, dst), src) - dst).transpose(2, 0, 1)).max(axis=1)
     return np.where(np.isfinite(miss), miss, np.inf)
+
+
+def apply_homographies(H: np.ndarray, p: np.ndarray) -> np.ndarray:
+    """Each point set ``p`` (K, P, 2) mapped by its homography ``H`` (K, 3, 3); NaN where a
+    point maps to infinity (or ``H`` is NaN)."""
+    q = np.einsum("kij,kpj->kpi", H, np.concatenate([p, np.ones(p.shape[:2] + (1,))], axis=2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return q[:, :, :2] / q[:, :, 2:]
 
 
 def apply_homography(H: np.ndarray, p: np.ndarray) -> np.ndarray:
     """``p`` (N, 2) mapped by ``H`` (3, 3)."""
-    q = np.c_[p, np.ones(len(p))] @ H.T
-    return q[:, :2] / q[:, 2:]
+    return apply_homographies(H[None], p[None])[0]

@@ -58,6 +58,7 @@ from camkit.target._markers import (
     drop_poor_fits,
     find_markers,
     is_x_corner,
+    narrowest_side,
     neighbour_quads,
     predict_points,
     quad_area,
@@ -226,7 +227,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # away is taken from them.
     for m, q in neighbour_quads(obj, places, quads).items():
         if m in quads:
-            b_px = grid.tag_spacing * np.sqrt(abs(quad_area(quads[m])))
+            b_px = grid.tag_spacing * float(np.sqrt(abs(quad_area(quads[m]))))
             off = np.hypot(*(quads[m] - q).T) > max(2.0 * factor, b_px / 3.0)
             quads[m] = np.where(off[:, None], q, quads[m])
     # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
@@ -237,7 +238,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # The tag's narrowest side in pixels (a tilted tag is narrow across its tilt, and so are
     # its border and corner squares): the scale of the window, the X-junction's circle and the
     # reach of the fit.
-    tag_px = np.repeat([_narrowest(quads[m]) for m in tags], 4)
+    tag_px = np.repeat(narrowest_side(np.stack([quads[m] for m in tags])), 4)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
     win = _refine(grid, full, ids, pred, tag_px, factor, out, sig)
@@ -313,11 +314,6 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
     return win
-
-
-def _narrowest(q: np.ndarray) -> float:
-    """The shortest side of the quad ``q`` (4, 2), pixels."""
-    return float(np.hypot(*(q - np.roll(q, 1, axis=0)).T).min())
 
 
 def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:

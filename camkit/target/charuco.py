@@ -49,7 +49,7 @@ import numpy as np
 
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
-from camkit.target._homography import apply_homography, fit_homographies
+from camkit.target._homography import apply_homographies, apply_homography, fit_homographies
 from camkit.target._markers import (
     confirm_markers,
     drop_poor_fits,
@@ -206,7 +206,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
             if np.isfinite(h).all():
                 homs[m] = h
                 found[m] = [q]
-                side_px[m] = np.sqrt(abs(quad_area(q))) * board.square / board.marker
+                side_px[m] = float(np.sqrt(abs(quad_area(q)))) * board.square / board.marker
                 confirmed.append(m)
     # 4. Chessboard corners next to confirmed markers, predicted, then at their saddle points.
     sx = board.squares_x
@@ -237,9 +237,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         rows = np.flatnonzero(count == c)
         mk = np.stack([np.flatnonzero(touch[r]) for r in rows])  # (K, c) indices into confirmed
         Hn = fit_homographies(obj[conf[mk]].reshape(len(rows), 4 * c, 2), img_q[mk].reshape(len(rows), 4 * c, 2))
-        p = np.einsum("kij,kj->ki", Hn, np.c_[cxy[rows] * board.square, np.ones(len(rows))])
-        with np.errstate(divide="ignore", invalid="ignore"):
-            q = p[:, :2] / p[:, 2:]
+        q = apply_homographies(Hn, cxy[rows, None] * board.square)[:, 0]
         good = np.isfinite(q).all(axis=1)
         pred[rows[good]] = q[good]
     H, W = full.shape
