@@ -11,7 +11,7 @@ from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
 from camkit.errors import ParameterError, ShapeError
-from camkit.target._homography import fit_homography
+from camkit.target._homography import fit_homographies
 from camkit.target.base import Detection, Sheet, Target, register_target
 
 __all__ = ["Checkerboard", "detect_corners"]
@@ -600,7 +600,7 @@ def _lens_rescue(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: float,
     them within the same tolerance.
 
     A quadratic over two steps cannot follow a board near a fisheye's rim (squares growing 1.5
-    times a step); a lens can be modelled. The model (:func:`_lens_map`) is a homography (the
+    times a step); a lens can be modelled. The model (:class:`_LensMap`) is a homography (the
     board's plane seen in perspective) followed by radial distortion about a free centre, the
     division model of Fitzgibbon (CVPR 2001) with a second term. It is trusted only where it
     predicts what it was not fitted on: the outer corners of those that passed, a quarter at a
@@ -667,20 +667,20 @@ class _LensMap:
 
     def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
             near: float = np.inf) -> np.ndarray | None:
-        """Least squares (Levenberg-Marquardt) from ``start``, else from the best of a few
-        division-model strengths with a homography each (the division model undistorts
+        """Least squares (:func:`_levenberg_marquardt`) from ``start``, else from the best of
+        a few division-model strengths with a homography each (the division model undistorts
         in closed form); None where that best start misses a point by more than ``near``
         pixels (no such lens is near), where it is the undistorted one (a homography: the
         local quadratic check already follows it), or where the fit fails."""
-        from scipy.optimize import least_squares
-
         qn = (q - self.centre) / self.f
         gn = (g - self.g0) / self.gs
         if start is None:
+            lams = np.array([0.0, -0.25, -0.5, -0.75, -1.0])
+            und = qn[None] / (1.0 + lams[:, None, None] * (qn * qn).sum(axis=1)[None, :, None])
+            Hs = fit_homographies(np.broadcast_to(gn, und.shape), und)  # one batch, five strengths
             best_start, best_miss = None, np.inf
-            for lam in (0.0, -0.25, -0.5, -0.75, -1.0):
-                H0 = fit_homography(gn, qn / (1.0 + lam * (qn * qn).sum(axis=1, keepdims=True)))
-                if H0 is None or not abs(H0[2, 2]) > 1e-12:
+            for lam, H0 in zip(lams, Hs, strict=True):
+                if not (np.isfinite(H0).all() and abs(H0[2, 2]) > 1e-12):
                     continue
                 p0 = np.r_[(H0 / H0[2, 2]).ravel()[:8], lam, np.zeros(self.n - 9)]
                 miss = float(np.max(np.hypot(*((self._map(p0, g) - qn) * self.f).T)))
@@ -689,12 +689,46 @@ class _LensMap:
             if best_start is None or not best_miss <= near or best_start[8] == 0.0:
                 return None
             start = best_start
-        with np.errstate(all="ignore"):
-            r = least_squares(lambda p: (self._map(p, g) - qn).ravel(), start, method="lm", max_nfev=40 * self.n)
-        return r.x if np.isfinite(r.cost) else None
+        return _levenberg_marquardt(lambda p: (self._map(p, g) - qn).ravel(), start, 40)
 
     def predict(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
         return self._map(p, g) * self.f + self.centre
+
+
+def _levenberg_marquardt(residuals, p0: np.ndarray, max_iter: int) -> np.ndarray | None:
+    """Minimise ``|residuals(p)|^2`` from ``p0``: Levenberg-Marquardt with Marquardt's scaling
+    (the damping on the diagonal of J^T J) and a forward-difference Jacobian, for the few
+    parameters of a detector's model (camkit's sparse solver, :mod:`camkit.calib.refine`,
+    serves the calibration above this layer). None where the start is not finite."""
+    p = np.array(p0, dtype=np.float64)
+    with np.errstate(all="ignore"):
+        r = residuals(p)
+        if not np.isfinite(r).all():
+            return None
+        cost = float(r @ r)
+        damping = 1e-3
+        for _ in range(max_iter):
+            h = 1e-7 * np.maximum(np.abs(p), 1.0)
+            J = np.stack([(residuals(p + h[i] * np.eye(len(p))[i]) - r) / h[i] for i in range(len(p))], axis=1)
+            A, g = J.T @ J, J.T @ r
+            diag = np.maximum(np.diag(A), 1e-12)
+            while True:
+                try:
+                    step = np.linalg.solve(A + damping * np.diag(diag), -g)
+                except np.linalg.LinAlgError:
+                    step = np.full_like(p, np.nan)
+                r_new = residuals(p + step)
+                new = float(r_new @ r_new) if np.isfinite(r_new).all() else np.inf
+                if new < cost:
+                    break
+                damping *= 10.0
+                if damping > 1e12:
+                    return p
+            p, r, decrease, cost = p + step, r_new, cost - new, new
+            damping = max(damping / 10.0, 1e-12)
+            if decrease <= 1e-12 * max(cost, 1e-300) or np.abs(step).max() <= 1e-12 * np.abs(p).max():
+                break
+    return p
 
 
 def _largest_part(g: np.ndarray) -> np.ndarray:
