@@ -362,12 +362,14 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: np.ndarray, keep: np.ndarray) 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side: int, near: np.ndarray,
-                   far: np.ndarray) -> None:  # pragma: no cover - numba
+                   far: np.ndarray, beyond: np.ndarray) -> None:  # pragma: no cover - numba
     """The shade half a square and one and a half squares out from the lattice's side ``side``
     (-1: low, +1: high) of lattice axis ``axis``, at each square along it (``near`` and ``far``
     hold one entry a square: between the corners j and j + 1 of the outer line), from the map
     fitted on the corners within two steps of the corner j (NaN where no map; infinity where the
-    point lies outside the image or within 2 px of its edge)."""
+    point lies outside the image or within 2 px of its edge). ``beyond`` (one row a square, x
+    and y) gets where the lattice's next corner past corner j would be, one step out (NaN where
+    no map; infinity where it lies outside the image or within 2 px of its edge)."""
     H, W = s.shape
     S = G.shape
     edge = 0 if side < 0 else S[axis] - 1
@@ -375,18 +377,26 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
     for j in range(near.shape[0]):
         near[j] = np.nan
         far[j] = np.nan
+        beyond[j, 0] = np.nan
+        beyond[j, 1] = np.nan
         a, b = (edge, j) if axis == 0 else (j, edge)
         if local_fit(G, q, a, b, 2, False, 4, coef) == 0:
             continue
-        for t in range(2):
-            depth = 0.5 if t == 0 else 1.5
-            ra = side * depth if axis == 0 else 0.5
-            rb = side * depth if axis == 1 else 0.5
+        for t in range(3):
+            depth = 0.5 if t == 0 else (1.5 if t == 1 else 1.0)
+            across = 0.5 if t < 2 else 0.0
+            ra = side * depth if axis == 0 else across
+            rb = side * depth if axis == 1 else across
             x = coef[0, 0] + coef[1, 0] * ra + coef[2, 0] * rb + coef[3, 0] * ra * ra + coef[4, 0] * ra * rb \
                 + coef[5, 0] * rb * rb
             y = coef[0, 1] + coef[1, 1] * ra + coef[2, 1] * rb + coef[3, 1] * ra * ra + coef[4, 1] * ra * rb \
                 + coef[5, 1] * rb * rb
-            v = bilinear(s, x, y) if 2 <= x <= W - 3 and 2 <= y <= H - 3 else np.inf
+            inside = 2 <= x <= W - 3 and 2 <= y <= H - 3
+            if t == 2:
+                beyond[j, 0] = x if inside else np.inf
+                beyond[j, 1] = y if inside else np.inf
+                continue
+            v = bilinear(s, x, y) if inside else np.inf
             if t == 0:
                 near[j] = v
             else:

@@ -139,6 +139,16 @@ def _profiles(s: np.ndarray, pts: np.ndarray, n: int = 32) -> np.ndarray:
                    "bilinear")
 
 
+def _x_test(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Which profiles ``v`` (from :func:`_profiles`) are X-corners: the circle crosses four
+    alternating sectors, with contrast, point-symmetric. Returns (is X-corner, asymmetry)."""
+    sign = v > v.mean(axis=1, keepdims=True)
+    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
+    contrast = v.max(axis=1) - v.min(axis=1)
+    sym = np.abs(v - np.roll(v, v.shape[1] // 2, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
+    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), sym
+
+
 def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """Saddle point of a quadratic fitted on a (2r+1)^2 window centred on each estimate
     (sampled bicubically, so the window is symmetric about it); per-corner sigma from the
@@ -227,8 +237,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        perspective and lens distortion) and takes the candidate nearest the prediction within
        a third of the local step. Lattices are grown from every corner not yet in one; each
        of at least half the largest's size goes through steps 3-6, and where two pass as the
-       board (the board and a second pattern), the one whose border is seen on more sides
-       wins; on a tie the board is not found.
+       board (the board and a second pattern), the one whose border is seen on more sides,
+       less the sides where it runs out of the image, wins; on a tie the board is not found.
     3. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each corner, the
        window's half-size an eleventh of the corner spacing (2 to 5 px); each corner's sigma
        from the fit's residuals. A corner whose sigma is over twice the board's median
@@ -247,10 +257,14 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        one end. A shorter one (part of the board hidden or outside the image) is placed
        against the side where the board's border is seen: half a square out, the outer
        squares alternate; one and a half out, the plain light margin. Where neither end
-       shows it, or the lattice fits the board either way round, the board is not found. A
-       lattice one line longer than the board (a board with one more corner printed than
-       declared) loses its weaker outer line, unless the pattern goes on past that axis or
-       runs out of the image there (then it is another pattern); the labels along that axis
+       shows it, or the lattice fits the board either way round, the board is not found.
+       One step past each side, where the pattern's next corners would be, X-corners at the
+       places inside the image mean the pattern goes on (a row missed, or a larger pattern),
+       whatever the shades say; a lattice as long as the board with the pattern going on
+       past an end is not found. A lattice one line longer than the board (a board with one
+       more corner printed than declared) loses its weaker outer line only where the pattern
+       is seen to end on all four sides (the places one step out mostly inside the image,
+       with no X-corner): the whole printed pattern is in view; the labels along that axis
        are then fixed up to that shift, which a calibration absorbs into the view's pose.
     6. Colours: where the half-turn changes the squares' colours (``inner_cols +
        inner_rows`` odd) they decide it, with square (0, 0) black as :class:`Checkerboard`
@@ -377,11 +391,7 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
         return fail("not found: fewer than 4 corner candidates")
     pts = buf[:n].astype(np.float64)
     v = _profiles(s, pts)
-    sign = v > v.mean(axis=1, keepdims=True)
-    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
-    contrast = v.max(axis=1) - v.min(axis=1)
-    sym = np.abs(v - np.roll(v, v.shape[1] // 2, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
-    ok = (changes == 4) & (contrast > 0.15) & (sym < 0.25)
+    ok, sym = _x_test(v)
     if ok.sum() < min(4, n_corners):
         return fail(f"not found: {int(ok.sum())} X-corners")
     pts, v, sym = pts[ok], v[ok], sym[ok]
@@ -481,22 +491,25 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
             # Only a lattice whose pattern is not seen to go on past either end of that axis, nor
             # to run out of the image there: either is a larger pattern (a second board cut by
             # the image's edge) as much as a board printed one line longer.
-            whole = _border_evidence(s, g, q, spacing)
+            whole, ended = _border_evidence(s, g, q, spacing)
             ax = 0 if trimmed[0] else 1
-            if {"more", "outside"} & {whole[(ax, -1)], whole[(ax, 1)]}:
+            if {"more", "outside"} & {whole[(ax, -1)], whole[(ax, 1)]} or not all(ended.values()):
                 why = (f"the corner lattice is {ext[0]}x{ext[1]}, larger than the board's {cols}x{rows}, and the "
                        "pattern goes on past it or out of the image (another pattern, or the board's size is not "
                        "the one given)")
                 continue
         gk = gt[keep_t] - gt[keep_t].min(axis=0)
-        sides = _border_evidence(s, gk, q[keep_t], spacing)
+        sides, ended = _border_evidence(s, gk, q[keep_t], spacing)
+        for key, seen_end in ended.items():
+            if sides[key] == "outside" and seen_end:
+                sides[key] = "ends"
         for ax in (0, 1):
             if trimmed[ax]:
                 sides[(ax, -1)] = sides[(ax, 1)] = "trimmed"
         off, why = _place(gk.max(axis=0) + 1, tgt, sides)
         if off is not None:
             placed = tgt, off
-            borders = sum(v == "border" for v in sides.values())
+            borders = sum(v == "border" for v in sides.values()) - sum(v == "outside" for v in sides.values())
             g, q, sig = gk, q[keep_t], sig[keep_t]
             break
     if placed is None:
@@ -745,7 +758,8 @@ def _largest_part(g: np.ndarray) -> np.ndarray:
     return np.sort(G[labels == 1 + int(np.argmax(sizes))])
 
 
-def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float) -> dict[tuple[int, int], str]:
+def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray,
+                     spacing: float) -> tuple[dict[tuple[int, int], str], dict[tuple[int, int], bool]]:
     """What lies beyond each side of the lattice: ``"border"`` (the row of outer squares, then
     the sheet's plain margin), ``"more"`` (the checker pattern goes on: corners were missed
     there) or ``"unknown"`` (outside the image, hidden, or too faint to say).
@@ -754,16 +768,34 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     alternating black and white; one and a half squares out lies the margin, uniform and as
     light as the white squares, where the board ends, or squares alternating the other way
     where it does not. Positions come from the quadratic lattice map fitted near each sample.
+    One step out, where the pattern's next corners would be, X-corners at most of the places
+    inside the image mean ``"more"`` whatever the shades say; where most of those places are
+    inside the image and hold no X-corner, the pattern is seen to end there (the second dict,
+    True), even where the margin beyond is outside the image or dark.
     Keys: (axis, -1) for the low side of lattice axis ``axis``, (axis, +1) for the high side."""
     G = _grid(g)
     ext = g.max(axis=0)
     qc = np.ascontiguousarray(q, dtype=np.float64)
     out: dict[tuple[int, int], str] = {}
+    ended: dict[tuple[int, int], bool] = {}
     for axis in (0, 1):
         for side in (-1, 1):
             near_a = np.empty(int(ext[1 - axis]))
             far_a = np.empty_like(near_a)
-            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a)
+            step = np.empty((len(near_a), 2))
+            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a, step)
+            # One step out, where the pattern's next corners would be: X-corners at most of the
+            # places there inside the image (even one) mean the pattern goes on, whatever the
+            # shades say; none at most of them, with at least half the places inside, mean it
+            # is seen to end.
+            inside = np.isfinite(step).all(axis=1)
+            ended[(axis, side)] = False
+            if inside.any():
+                is_x = _x_test(_profiles(s, step[inside]))[0]
+                if is_x.mean() >= 0.5:
+                    out[(axis, side)] = "more"
+                    continue
+                ended[(axis, side)] = inside.sum() >= 2 and inside.sum() >= 0.5 * len(step)
             ok = np.isfinite(near_a) & np.isfinite(far_a)
             beyond = np.isinf(near_a) | np.isinf(far_a)
             if ok.sum() < 2 or beyond.sum() > ok.sum():
@@ -784,7 +816,7 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
                 plain = abs(a_far) < 0.25 * abs(a_near)
                 light = float(np.mean(f_)) > black + 0.7 * (white - black)
                 out[(axis, side)] = "border" if plain and light else "unknown"
-    return out
+    return out, ended
 
 
 def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[int, int] | None, str]:
