@@ -18,7 +18,7 @@ from camkit.errors import ParameterError
 from camkit.lens.base import CameraModel
 from camkit.lens.pinhole import Pinhole
 
-__all__ = ["optimal_pinhole", "reproject_map", "undistort_map"]
+__all__ = ["border_rectangles", "fit_pinhole", "optimal_pinhole", "reproject_map", "undistort_map"]
 
 _CHUNK_PIXELS = 1 << 18  # rows per chunk in the generic path: ~256 k pixels, a few MB
 
@@ -155,24 +155,51 @@ def optimal_pinhole(model: CameraModel, alpha: float = 0.0, *, width: int | None
         raise ParameterError(f"alpha: expected a number in [0, 1], got {a}")
     w = model.width if width is None else as_positive_int(width, "width")
     h = model.height if height is None else as_positive_int(height, "height")
+    inner, outer = border_rectangles(model)
+    return fit_pinhole(inner, outer, a, w, h, model.fy / model.fx)
+
+
+def border_rectangles(model: CameraModel, rotation: Any = None, name: str = "model") -> tuple[np.ndarray, np.ndarray]:
+    """Where the image's border goes on the normalised plane ``z = 1`` of a camera turned by
+    ``rotation`` (``new_from_model``; none by default): the inner rectangle (bounded by the four
+    edge curves: the rightmost point of the left edge, the lowest of the top edge, ...) and the
+    outer one (the whole border's bounding box), each ``[x0, y0, x1, y1]``. The border is
+    sampled at every pixel of its outer edge.
+
+    Raises
+    ------
+    ParameterError
+        If a border pixel has no ray in front of the (turned) camera, naming ``name``.
+    """
+    R = np.eye(3) if rotation is None else as_rotation_matrix(rotation, "rotation")
     edges = {}
-    for name, px in _border_pixels(model.width, model.height).items():
-        rays = model.unproject(px)
+    for side, px in _border_pixels(model.width, model.height).items():
+        rays = model.unproject(px) @ R.T
         ok = np.isfinite(rays).all(axis=-1) & (rays[:, 2] > 1e-6)
         if not ok.all():
             raise ParameterError(
-                f"model: {int((~ok).sum())} pixels of the image's {name} edge have no ray in front of "
+                f"{name}: {int((~ok).sum())} pixels of the image's {side} edge have no ray in front of "
                 "the camera (outside the lens's valid region, or beyond 90 degrees); no pinhole "
                 "camera can show them"
             )
-        edges[name] = rays[:, :2] / rays[:, 2:]
+        edges[side] = rays[:, :2] / rays[:, 2:]
     inner = np.array([edges["left"][:, 0].max(), edges["top"][:, 1].max(),
                       edges["right"][:, 0].min(), edges["bottom"][:, 1].min()])
     allpts = np.concatenate(list(edges.values()))
     outer = np.array([allpts[:, 0].min(), allpts[:, 1].min(), allpts[:, 0].max(), allpts[:, 1].max()])
+    return inner, outer
+
+
+def fit_pinhole(inner: np.ndarray, outer: np.ndarray, alpha: float, width: int, height: int,
+                ratio: float = 1.0, name: str = "model") -> Pinhole:
+    """The pinhole camera of ``width x height`` pixels (``fy = ratio * fx``, zero skew) whose
+    image lies inside the rectangle ``inner`` at ``alpha = 0`` and holds ``outer`` at
+    ``alpha = 1`` (rectangles ``[x0, y0, x1, y1]`` on the normalised plane; see
+    :func:`border_rectangles`); between, the field of view (``1 / fx``) and the centre are
+    interpolated linearly, so the camera moves continuously with ``alpha`` and the input."""
+    w, h = width, height
     if inner[2] <= inner[0] or inner[3] <= inner[1]:
-        raise ParameterError("model: the undistorted image has no inner rectangle (the edges cross)")
-    ratio = model.fy / model.fx
+        raise ParameterError(f"{name}: the undistorted image has no inner rectangle (the edges cross)")
 
     def extent(rect: np.ndarray, cover: bool) -> float:
         # The output spans w / fx by h / fy in normalised units (pixel edges at -0.5, w - 0.5).
@@ -183,8 +210,8 @@ def optimal_pinhole(model: CameraModel, alpha: float = 0.0, *, width: int | None
 
     # 1 / fx at alpha = 0 (inside the inner rectangle) and alpha = 1 (holding the outer one),
     # interpolated linearly, as is the centre: continuous in alpha and in the model.
-    inv_f = (1 - a) * extent(inner, cover=True) + a * extent(outer, cover=False)
-    centre = (1 - a) * (inner[:2] + inner[2:]) / 2 + a * (outer[:2] + outer[2:]) / 2
+    inv_f = (1 - alpha) * extent(inner, cover=True) + alpha * extent(outer, cover=False)
+    centre = (1 - alpha) * (inner[:2] + inner[2:]) / 2 + alpha * (outer[:2] + outer[2:]) / 2
     fx = 1.0 / inv_f
     fy = fx * ratio
     cx = (w - 1) / 2.0 - fx * centre[0]
