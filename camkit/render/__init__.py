@@ -2,6 +2,7 @@
 
 from camkit.render.dataset import camera_to_dict, default_camera, plan_views, simulate_dataset
 from camkit.render.effects import Defocus, Effects, Exposure, Motion, render_view
+from camkit.render.rig import RigInstant, simulate_rig
 from camkit.render.target import RenderTruth, render_checkerboard, render_target, render_texture
 
 __all__ = [
@@ -10,6 +11,7 @@ __all__ = [
     "Exposure",
     "Motion",
     "RenderTruth",
+    "RigInstant",
     "camera_to_dict",
     "default_camera",
     "plan_views",
@@ -18,4 +20,5 @@ __all__ = [
     "render_texture",
     "render_view",
     "simulate_dataset",
+    "simulate_rig",
 ]
