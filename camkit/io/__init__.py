@@ -1,4 +1,4 @@
-"""File formats: images and camera files."""
+"""File formats: images, camera files and rig files."""
 
 from camkit.io.camera_files import (
     CAMERA_FORMAT_VERSION,
@@ -29,6 +29,15 @@ from camkit.io.images import (
     write_image,
     write_png,
 )
+from camkit.io.rig_files import (
+    load_rig,
+    read_kalibr_camchain,
+    read_opencv_stereo_yaml,
+    read_rig,
+    save_rig,
+    write_kalibr_camchain,
+    write_opencv_stereo_yaml,
+)
 
 __all__ = [
     "CAMERA_FORMAT_VERSION",
@@ -43,16 +52,23 @@ __all__ = [
     "export_camera",
     "is_image_name",
     "load_camera",
+    "load_rig",
     "read_camera",
     "read_colmap_cameras",
     "read_image",
     "read_image_info",
+    "read_kalibr_camchain",
+    "read_opencv_stereo_yaml",
     "read_opencv_yaml",
     "read_raw",
+    "read_rig",
     "save_camera",
+    "save_rig",
     "write_colmap_cameras",
     "write_image",
+    "write_kalibr_camchain",
     "write_kalibr_yaml",
+    "write_opencv_stereo_yaml",
     "write_opencv_yaml",
     "write_png",
     "write_ros_yaml",

@@ -23,9 +23,21 @@ from camkit.lens.kannala_brandt import KannalaBrandt
 from camkit.lens.opencv import from_opencv, from_opencv_fisheye, to_opencv
 from camkit.lens.pinhole import Pinhole
 
-__all__ = ["CAMERA_FORMAT_VERSION", "EXPORT_FORMATS", "export_camera", "load_camera", "read_camera",
-           "read_colmap_cameras", "read_opencv_yaml", "save_camera", "write_colmap_cameras", "write_kalibr_yaml",
-           "write_opencv_yaml", "write_ros_yaml"]
+__all__ = [
+    "CAMERA_FORMAT_VERSION",
+    "EXPORT_FORMATS",
+    "export_camera",
+    "kalibr_entry",
+    "load_camera",
+    "read_camera",
+    "read_colmap_cameras",
+    "read_opencv_yaml",
+    "save_camera",
+    "write_colmap_cameras",
+    "write_kalibr_yaml",
+    "write_opencv_yaml",
+    "write_ros_yaml",
+]
 
 CAMERA_FORMAT_VERSION = 1
 
@@ -309,6 +321,12 @@ def write_kalibr_yaml(path: str | os.PathLike, model: CameraModel, *, name: str 
     hold (skew, k3 and beyond for radtan) are refused rather than dropped."""
     import yaml
 
+    doc = {name: kalibr_entry(model)}
+    return write_atomic(path, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None).encode())
+
+
+def kalibr_entry(model: CameraModel) -> dict[str, Any]:
+    """One camera of a Kalibr camchain, as a dictionary (see :func:`write_kalibr_yaml`)."""
     if model.skew != 0:
         raise ParameterError(f"model: Kalibr has no skew; got skew = {model.skew}")
     if isinstance(model, KannalaBrandt):
@@ -323,11 +341,10 @@ def write_kalibr_yaml(path: str | os.PathLike, model: CameraModel, *, name: str 
         dmodel, coeffs = "none", []
     else:
         raise ParameterError(f"model: expected a Pinhole, BrownConrady or KannalaBrandt, got {type(model).__name__}")
-    doc = {name: {"camera_model": "pinhole", "intrinsics": [float(model.fx), float(model.fy), float(model.cx),
-                                                             float(model.cy)],
-                  "distortion_model": dmodel, "distortion_coeffs": [float(v) for v in coeffs],
-                  "resolution": [int(model.width), int(model.height)]}}
-    return write_atomic(path, yaml.safe_dump(doc, sort_keys=False, default_flow_style=None).encode())
+    return {"camera_model": "pinhole", "intrinsics": [float(model.fx), float(model.fy), float(model.cx),
+                                                      float(model.cy)],
+            "distortion_model": dmodel, "distortion_coeffs": [float(v) for v in coeffs],
+            "resolution": [int(model.width), int(model.height)]}
 
 
 def _from_kalibr_doc(doc: dict[str, Any], where: str) -> CameraModel:
