@@ -20,7 +20,7 @@ from benchmarks.harness import markdown_table, run_case
 
 MODULES = [
     "bench_geometry", "bench_lens", "bench_resample", "bench_sensor", "bench_render", "bench_detect", "bench_charuco",
-    "bench_calib",
+    "bench_calib", "bench_stereo",
 ]
 RESULTS = Path(__file__).with_name("RESULTS.md")
 NOTES = Path(__file__).with_name("notes.md")  # appended to RESULTS.md: what a table alone cannot say
