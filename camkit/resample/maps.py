@@ -159,22 +159,48 @@ def optimal_pinhole(model: CameraModel, alpha: float = 0.0, *, width: int | None
     return fit_pinhole(inner, outer, a, w, h, model.fy / model.fx)
 
 
+def _clip_to_rays(model: CameraModel, px: np.ndarray, rays: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Border pixels whose ray the lens model does not give (NaN: outside a fitted
+    polynomial's valid region, which can turn back before the image's corners when no photo
+    reached them), moved toward the image's centre to the edge of the region that has rays
+    (bisection along the line to the centre, to 1/1000 of its length)."""
+    bad = ~np.isfinite(rays).all(axis=-1)
+    if not bad.any():
+        return px, rays
+    c = np.array([(model.width - 1) / 2.0, (model.height - 1) / 2.0])
+    lo, hi = np.zeros(int(bad.sum())), np.ones(int(bad.sum()))
+    d = px[bad] - c
+    for _ in range(10):
+        mid = 0.5 * (lo + hi)
+        ok = np.isfinite(model.unproject(c + mid[:, None] * d)).all(axis=-1)
+        lo = np.where(ok, mid, lo)
+        hi = np.where(ok, hi, mid)
+    px, rays = px.copy(), rays.copy()
+    px[bad] = c + lo[:, None] * d
+    rays[bad] = model.unproject(px[bad])
+    return px, rays
+
+
 def border_rectangles(model: CameraModel, rotation: Any = None, name: str = "model") -> tuple[np.ndarray, np.ndarray]:
     """Where the image's border goes on the normalised plane ``z = 1`` of a camera turned by
     ``rotation`` (``new_from_model``; none by default): the inner rectangle (bounded by the four
     edge curves: the rightmost point of the left edge, the lowest of the top edge, ...) and the
     outer one (the whole border's bounding box), each ``[x0, y0, x1, y1]``. The border is
-    sampled at every pixel of its outer edge.
+    sampled at every pixel of its outer edge. Where the lens model gives no ray for a border
+    pixel (outside a fitted polynomial's valid region), the border follows the edge of the
+    region that has rays instead: those pixels see nothing in the model.
 
     Raises
     ------
     ParameterError
-        If a border pixel has no ray in front of the (turned) camera, naming ``name``.
+        If a border pixel's ray points behind the (turned) camera (a fisheye beyond 90
+        degrees), naming ``name``.
     """
     R = np.eye(3) if rotation is None else as_rotation_matrix(rotation, "rotation")
     edges = {}
     for side, px in _border_pixels(model.width, model.height).items():
-        rays = model.unproject(px) @ R.T
+        px, rays = _clip_to_rays(model, px, model.unproject(px))
+        rays = rays @ R.T
         ok = np.isfinite(rays).all(axis=-1) & (rays[:, 2] > 1e-6)
         if not ok.all():
             raise ParameterError(
