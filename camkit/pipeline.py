@@ -8,6 +8,7 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 from camkit._validate import check_same_size
 from camkit.calib.calibrate import CalibrationResult, calibrate_detections
@@ -18,7 +19,8 @@ from camkit.target import Target
 #: Width of the thumbnails kept for the report (pixels).
 THUMBNAIL_WIDTH = 240
 
-__all__ = ["CalibrationJob", "InputImages", "UndistortJob", "calibrate_files", "collect_images", "prepare_outputs",
+__all__ = ["CalibrationJob", "InputImages", "RectifyJob", "RigJob", "UndistortJob", "calibrate_files",
+           "calibrate_rig_files", "collect_images", "pair_images", "prepare_outputs", "rectify_files",
            "undistort_files"]
 
 
@@ -250,3 +252,178 @@ def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_
         if progress is not None:
             progress("undistort", k + 1, len(targets))
     return UndistortJob(targets, out, new)
+
+
+def _natural(key: str) -> tuple:
+    return (0, int(key), key) if key.isdigit() else (1, 0, key)
+
+
+def pair_images(cameras: dict[str, Sequence[Path]],
+                pair_by: str | None = None) -> tuple[list[str], list[list[Path | None]]]:
+    """Pair the cameras' image files instant by instant.
+
+    Without ``pair_by``, by sorted order: the k-th file of every camera is instant k (every
+    camera must have as many files). With ``pair_by`` (a regular expression), by the part of
+    each file name it matches (its first group if it has one: ``r"(\\d+)"`` pairs
+    ``left_012.png`` with ``right_012.png``); a camera without a file for an instant has None
+    there. Returns the instants' names and, per camera, its file at each instant.
+    """
+    import re
+
+    names = list(cameras)
+    if pair_by is None:
+        counts = {n: len(cameras[n]) for n in names}
+        if len(set(counts.values())) != 1:
+            raise ParameterError(f"--camera: the cameras have different numbers of images ({counts}); pairing by "
+                                 "sorted order needs as many for each (or pair by name with --pair-by)")
+        n = counts[names[0]]
+        return [str(k) for k in range(n)], [list(cameras[c]) for c in names]
+    try:
+        rx = re.compile(pair_by)
+    except re.error as exc:
+        raise ParameterError(f"--pair-by: not a valid regular expression ({exc})") from None
+    keyed: list[dict[str, Path]] = []
+    for c in names:
+        table: dict[str, Path] = {}
+        for p in cameras[c]:
+            m = rx.search(p.name)
+            if m is None:
+                raise ParameterError(f"--pair-by: {pair_by!r} does not match the file name {p.name} (camera {c})")
+            key = m.group(1) if m.groups() else m.group(0)
+            if key in table:
+                raise ParameterError(f"--pair-by: camera {c} has two files for instant {key!r}: {table[key].name} "
+                                     f"and {p.name}")
+            table[key] = p
+        keyed.append(table)
+    keys = sorted(set().union(*keyed), key=_natural)
+    return keys, [[t.get(k) for k in keys] for t in keyed]
+
+
+@dataclass(frozen=True, slots=True)
+class RigJob:
+    """What :func:`calibrate_rig_files` did: the result, the instants' names, each camera's
+    file per instant (None where it had none) and the files written."""
+
+    result: Any
+    instants: list[str]
+    paths: list[list[Path | None]]
+    rig_file: Path | None
+    written: list[Path] = field(default_factory=list)
+
+
+def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target: Target, *,
+                        pair_by: str | None = None, models: Any = "brown-conrady", fix: tuple[str, ...] | None = None,
+                        free: tuple[str, ...] | None = None, rig_file: str | os.PathLike | None = None,
+                        opencv_file: str | os.PathLike | None = None, kalibr_file: str | os.PathLike | None = None,
+                        progress: Callable[[str, int, int], None] | None = None) -> RigJob:
+    """Calibrate a camera rig from each camera's image files (``{name: files}``, paired by
+    :func:`pair_images`): each image read and the target detected in it, then
+    :func:`camkit.calib.calibrate_rig`; the rig written as camkit JSON (``rig_file``), OpenCV
+    stereo YAML (``opencv_file``, two cameras) and a Kalibr camchain (``kalibr_file``), each
+    atomically. A camera whose images differ in size is refused naming the file."""
+    from camkit.calib.rig import calibrate_rig
+    from camkit.io import read_image
+    from camkit.io.rig_files import save_rig, write_kalibr_camchain, write_opencv_stereo_yaml
+
+    if not isinstance(cameras, dict) or len(cameras) < 2:
+        raise ParameterError("--camera: expected two or more cameras, each with its images")
+    files = {c: [Path(p) for p in v] for c, v in cameras.items()}
+    instants, paths = pair_images(files, pair_by)
+    names = list(files)
+    total = sum(p is not None for row in paths for p in row)
+    views, sizes = [], []
+    done = 0
+    for c, row in zip(names, paths, strict=True):
+        dets: list[Any] = []
+        size = None
+        for p in row:
+            if p is None:
+                dets.append(None)
+                continue
+            img = read_image(p)
+            size = check_same_size(size, img, str(p))
+            dets.append(target.detect(img))
+            done += 1
+            if progress is not None:
+                progress("detect", done, total)
+        if size is None:
+            raise ParameterError(f"--camera {c}: no image of this camera is paired with another camera's")
+        views.append(dets)
+        sizes.append((size[1], size[0]))
+    result = calibrate_rig(views, target, sizes=sizes, models=models, names=names, fix=fix, free=free)
+    written = []
+    if rig_file is not None:
+        written.append(save_rig(rig_file, result))
+    if opencv_file is not None:
+        written.append(write_opencv_stereo_yaml(opencv_file, result))
+    if kalibr_file is not None:
+        written.append(write_kalibr_camchain(kalibr_file, result))
+    return RigJob(result, instants, paths, Path(rig_file) if rig_file is not None else None, written)
+
+
+@dataclass(frozen=True, slots=True)
+class RectifyJob:
+    """What :func:`rectify_files` wrote: the rectified pairs (left, right), the folder, the
+    rectification, and its OpenCV stereo file."""
+
+    written: list[tuple[Path, Path]]
+    out_dir: Path
+    rectification: Any
+    stereo_file: Path
+
+
+def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[str | os.PathLike],
+                  out_dir: str | os.PathLike, *, cameras: tuple[str | int, str | int] = (0, 1),
+                  mode: str | float = "valid", interpolation: str = "bilinear",
+                  progress: Callable[[str, int, int], None] | None = None,
+                  output_option: str = "out_dir") -> RectifyJob:
+    """Rectify stereo pairs (the k-th left file with the k-th right one) of cameras
+    ``cameras`` of ``rig`` (a CameraRig or RigResult) into ``out_dir/<left name>/`` and
+    ``out_dir/<right name>/`` as PNG (same stems), with ``out_dir/stereo.yml`` (OpenCV's
+    M1 ... Q). Everything is checked before the first file is written; each file is written
+    atomically; an image whose size is not its camera's is refused with its name."""
+    from camkit.calib.rig import CameraRig, RigResult
+    from camkit.io import read_image, write_png
+    from camkit.io.rig_files import write_opencv_stereo_yaml
+    from camkit.resample import remap
+    from camkit.stereo import rectify, rectify_maps
+
+    r = rig.rig if isinstance(rig, RigResult) else rig
+    if not isinstance(r, CameraRig):
+        raise ParameterError(f"rig: expected a CameraRig or RigResult, got {type(rig).__name__}")
+    a, b = r.index(cameras[0]), r.index(cameras[1])
+    ls, rs = [Path(p) for p in left], [Path(p) for p in right]
+    if len(ls) != len(rs):
+        raise ParameterError(f"LEFT, RIGHT: expected as many right images as left ones, got {len(ls)} and {len(rs)}")
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the rectified images")
+    targets = [(out / r.names[a] / (p.stem + ".png"), out / r.names[b] / (q.stem + ".png")) for p, q in zip(ls, rs,
+                                                                                                      strict=True)]
+    flat = [t for pair in targets for t in pair]
+    if len({t.resolve() for t in flat}) != len(flat):
+        raise ParameterError("LEFT, RIGHT: two inputs of one camera have the same name; their outputs would "
+                             "overwrite each other")
+    inputs = {p.resolve() for p in (*ls, *rs)}
+    for t in flat:
+        if t.resolve() in inputs:
+            raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
+    rect = rectify(r.models[a], r.models[b], r.relative_pose(a, b), mode=mode)
+    maps = rectify_maps(rect)
+    try:
+        for d in (out / r.names[a], out / r.names[b]):
+            d.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    sub = CameraRig((r.names[a], r.names[b]), (r.models[a], r.models[b]), (r.cam_from_rig[a], r.cam_from_rig[b]))
+    stereo_file = write_opencv_stereo_yaml(out / "stereo.yml", sub, mode=mode)
+    for k, ((p, q), (tp, tq)) in enumerate(zip(zip(ls, rs, strict=True), targets, strict=True)):
+        for src, dst, model, m in ((p, tp, r.models[a], maps[0]), (q, tq, r.models[b], maps[1])):
+            img = read_image(src)
+            if img.shape[1] != model.width or img.shape[0] != model.height:
+                raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
+                                     f"{img.shape[1]}x{img.shape[0]}")
+            write_png(dst, remap(img, m, interpolation=interpolation))
+        if progress is not None:
+            progress("rectify", k + 1, len(ls))
+    return RectifyJob(targets, out, rect, stereo_file)

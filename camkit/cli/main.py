@@ -27,7 +27,7 @@ class _Progress:
 
     LABELS: ClassVar[dict[str, str]] = {"render": "rendering views", "detect": "detecting corners",
                                         "calibrate": "calibrating", "report": "writing the report",
-                                        "undistort": "undistorting"}
+                                        "undistort": "undistorting", "rectify": "rectifying pairs"}
 
     def __init__(self, console) -> None:
         from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
@@ -174,6 +174,98 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         if path is not None:
             console.print(f"{label + ':':<9}{path}")
     return 0
+
+
+def _cmd_calibrate_rig(args: argparse.Namespace) -> int:
+    from rich.table import Table
+
+    from camkit.calib import held_parameters
+    from camkit.pipeline import calibrate_rig_files, collect_images, pair_images, prepare_outputs
+
+    console = _console()
+    board = _target_of(args)
+    fix, free = tuple(args.fix or ()), tuple(args.free or ())
+    held = held_parameters(args.model, fix, free)
+    if args.kalibr and args.model == "brown-conrady" and "k3" not in held:
+        raise ParameterError("--kalibr: Kalibr's radtan model holds k1, k2, p1, p2 only; add --fix k3 so the "
+                             "cameras can be written to a camchain")
+    cams: dict[str, list] = {}
+    for name, pattern in args.camera:
+        if name in cams:
+            raise ParameterError(f"--camera: the name {name!r} is given twice")
+        cams[name] = collect_images([pattern]).paths
+    if len(cams) < 2:
+        raise ParameterError("--camera: a rig needs two or more cameras (--camera NAME IMAGES, once per camera)")
+    if args.opencv and len(cams) != 2:
+        raise ParameterError(f"--opencv: OpenCV's stereo file holds two cameras; the rig has {len(cams)}")
+    every = [p for v in cams.values() for p in v]
+    prepare_outputs({"-o": args.output, "--opencv": args.opencv, "--kalibr": args.kalibr}, every)
+    instants, paths = pair_images(cams, args.pair_by)
+    table = Table(title="Pairing" + (f" (by {args.pair_by!r})" if args.pair_by else " (by sorted order)"),
+                  title_justify="left")
+    table.add_column("instant")
+    for name in cams:
+        table.add_column(name)
+    for k, key in enumerate(instants):
+        table.add_row(key, *[(row[k].name if row[k] is not None else "-") for row in paths])
+    console.print(table)
+    console.print(f"camkit calibrate-rig: {len(cams)} cameras, {len(instants)} instants, {_describe(board)}, "
+                  f"model {args.model}")
+    with _Progress(console) as progress:
+        job = calibrate_rig_files(cams, board, pair_by=args.pair_by, models=args.model, fix=fix, free=free,
+                                  rig_file=args.output, opencv_file=args.opencv, kalibr_file=args.kalibr,
+                                  progress=progress)
+    r = job.result
+    res = Table(title="Rig", title_justify="left")
+    for col in ("camera", "boards used", "RMS px", "baseline mm", "rotation sigma deg (x y z)",
+                "translation sigma mm (x y z)"):
+        res.add_column(col, justify="left" if col == "camera" else "right")
+    for k, name in enumerate(r.names):
+        ref = k == r.reference
+        res.add_row(name, str(len(r.cameras[k].view_indices)), f"{r.camera_rms_px[k]:.3f}",
+                    "reference" if ref else f"{r.baseline_m[k] * 1000:.2f} +- {r.baseline_sigma_m[k] * 1000:.2f}",
+                    "" if ref else " ".join(f"{v:.4f}" for v in r.rotation_sigma_deg[k]),
+                    "" if ref else " ".join(f"{v * 1000:.3f}" for v in r.translation_sigma_m[k]))
+    console.print(res)
+    for k, name in enumerate(r.names):
+        console.print(_param_table(r.cameras[k], title=f"Camera {name}"))
+    console.print(f"RMS {r.rms_px:.3f} px per corner over every camera; {len(r.rejected)} corners rejected as "
+                  f"outliers; {r.message}")
+    for path in job.written:
+        console.print(f"wrote {path}")
+    return 0
+
+
+def _cmd_rectify(args: argparse.Namespace) -> int:
+    from camkit.io.rig_files import read_rig
+    from camkit.pipeline import collect_images, rectify_files
+
+    console = _console()
+    rig = read_rig(args.rig)
+    left = collect_images([args.left]).paths
+    right = collect_images([args.right]).paths
+    cams = tuple(args.cameras) if args.cameras else (0, 1)
+    with _Progress(console) as progress:
+        job = rectify_files(rig, left, right, args.output, cameras=cams, mode=args.mode,
+                            interpolation=args.interpolation, progress=progress, output_option="-o")
+    r = job.rectification
+    console.print(f"wrote {len(job.written)} rectified pairs to {job.out_dir} and {job.stereo_file}; the rectified "
+                  f"cameras: f={r.left.fx:.2f} cx={r.left.cx:.2f} cy={r.left.cy:.2f} ({r.left.width}x"
+                  f"{r.left.height}), baseline {abs(float(r.baseline[1 if r.vertical else 0])) * 1000:.2f} mm; valid "
+                  f"rectangles (x, y, w, h) {r.valid_left} and {r.valid_right}")
+    return 0
+
+
+def _mode(text: str) -> str | float:
+    if text in ("valid", "full"):
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected valid, full or a number in [0, 1], got {text!r}") from None
+    if not 0.0 <= v <= 1.0:
+        raise argparse.ArgumentTypeError(f"expected valid, full or a number in [0, 1], got {text!r}")
+    return v
 
 
 def _describe(board) -> str:
@@ -439,6 +531,36 @@ def build_parser() -> argparse.ArgumentParser:
     cal.add_argument("--json", metavar="RESULTS", help="also write the results (residuals, sigmas, views) here")
     cal.add_argument("--report", metavar="HTML", help="also write an HTML report here")
     cal.set_defaults(func=_cmd_calibrate)
+
+    rig = sub.add_parser("calibrate-rig", help="calibrate a stereo pair or camera rig from photos taken at the same "
+                                               "instants")
+    rig.add_argument("--camera", nargs=2, action="append", required=True, metavar=("NAME", "IMAGES"),
+                     help="a camera's name and its images (a folder or a quoted glob pattern); once per camera")
+    rig.add_argument("--pair-by", metavar="REGEX",
+                     help="pair the images by the part of their names this matches (its first group if any), e.g. "
+                          "'(\\d+)'; default: by sorted order")
+    rig.add_argument("--board", type=_board_size, help="a checkerboard's inner corners COLSxROWS, e.g. 9x6")
+    rig.add_argument("--square", type=_length_m, help="the checkerboard's square side, e.g. 25mm")
+    rig.add_argument("--target", type=_target_spec, metavar="SPEC", help="another target, as for calibrate")
+    rig.add_argument("--model", default="brown-conrady", choices=_model_names(), help="lens model of every camera")
+    rig.add_argument("--fix", action="append", metavar="NAME", help="as for calibrate")
+    rig.add_argument("--free", action="append", metavar="NAME", help="as for calibrate")
+    rig.add_argument("-o", "--output", default="rig.json", help="rig file to write (default rig.json)")
+    rig.add_argument("--opencv", metavar="YAML", help="also write OpenCV's stereo file (two cameras)")
+    rig.add_argument("--kalibr", metavar="YAML", help="also write a Kalibr camchain")
+    rig.set_defaults(func=_cmd_calibrate_rig)
+
+    rect = sub.add_parser("rectify", help="rectify stereo pairs with a rig file")
+    rect.add_argument("rig", metavar="RIG", help="a rig file: camkit rig JSON, OpenCV stereo YAML or Kalibr camchain")
+    rect.add_argument("left", metavar="LEFT", help="the left images (a file, folder or quoted glob)")
+    rect.add_argument("right", metavar="RIGHT", help="the right images, paired with the left ones by sorted order")
+    rect.add_argument("--cameras", nargs=2, metavar=("LEFT_NAME", "RIGHT_NAME"),
+                      help="which cameras of the rig (default its first two)")
+    rect.add_argument("--mode", type=_mode, default="valid",
+                      help="valid (no black borders, default), full (every source pixel kept) or a number in [0, 1]")
+    rect.add_argument("--interpolation", default="bilinear", choices=("nearest", "bilinear", "bicubic", "lanczos3"))
+    rect.add_argument("-o", "--output", required=True, help="output folder (inputs are never overwritten)")
+    rect.set_defaults(func=_cmd_rectify)
 
     brd = sub.add_parser("board", help="write a printable checkerboard, ChArUco board or AprilGrid (pdf, svg or "
                                        "png) at exact scale")

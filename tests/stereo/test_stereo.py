@@ -38,7 +38,7 @@ def test_rotations_agree_with_opencv_stereo_rectify(rvec, t) -> None:
     rfl = Pose.from_rvec(rvec, t)
     r = rectify(LEFT, RIGHT, rfl.inverse())
     dist = [np.array([m.k1, m.k2, m.p1, m.p2, m.k3]) for m in (LEFT, RIGHT)]
-    R1, R2, P1, P2, Q, _, _ = cv2.stereoRectify(LEFT.K, dist[0], RIGHT.K, dist[1], (1280, 960),
+    R1, R2, _, P2, Q, _, _ = cv2.stereoRectify(LEFT.K, dist[0], RIGHT.K, dist[1], (1280, 960),
                                                 np.array(rfl.R), np.array(rfl.t).reshape(3, 1), alpha=0)
     assert np.abs(R1 - r.rect_from_left).max() < 1e-12
     assert np.abs(R2 - r.rect_from_right).max() < 1e-12
@@ -47,6 +47,7 @@ def test_rotations_agree_with_opencv_stereo_rectify(rvec, t) -> None:
     assert r.vertical == (abs(t[1]) > abs(t[0]))
     assert r.baseline[k] == pytest.approx(P2[k, 3] / P2[0, 0], rel=1e-12)
     assert np.abs(np.delete(r.baseline, k)).max() < 1e-12
+    assert r.Q[3, 2] == pytest.approx(Q[3, 2], rel=1e-12)  # -1 / baseline, in both
 
 
 def test_rectified_rows_agree_and_q_gives_the_points_back() -> None:

@@ -1,0 +1,99 @@
+"""``camkit calibrate-rig`` and ``camkit rectify`` (issue 24, item 3) on real files: the
+Bumblebee2 stereo pairs, and rendered pairs written as PNG."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from camkit.cli.main import main
+from camkit.geometry.pose import Pose
+from camkit.io import read_image, read_rig, write_png
+from camkit.lens import BrownConrady
+from camkit.render import simulate_rig
+from camkit.target import Checkerboard
+
+
+def test_calibrate_rig_and_rectify_the_bumblebee_pairs(shared_data, tmp_path, capsys):
+    src = shared_data / "real_boards" / "boofcv_bumblebee" / "images"
+    left, right = tmp_path / "L", tmp_path / "R"
+    left.mkdir()
+    right.mkdir()
+    for f in src.glob("*_left*.jpg"):
+        shutil.copy(f, left / f.name.replace("_left", "_"))
+    for f in sorted(src.glob("*_right*.jpg"))[:-1]:  # one right image missing: paired by name, not order
+        shutil.copy(f, right / f.name.replace("_right", "_"))
+    out = tmp_path / "out"
+    code = main(["calibrate-rig", "--camera", "left", str(left), "--camera", "right", str(right), "--board", "6x4",
+                 "--square", "30mm", "--pair-by", r"(\d+)\.jpg$", "-o", str(out / "rig.json"), "--opencv",
+                 str(out / "stereo.yml"), "--kalibr", str(out / "camchain.yaml"), "--fix", "k3"])
+    text = capsys.readouterr().out
+    assert code == 0, text
+    assert "Pairing" in text and "11 instants" in text
+    doc = json.loads((out / "rig.json").read_text())
+    assert doc["format"] == "camkit-rig"
+    rig = read_rig(out / "rig.json")
+    assert rig.names == ("left", "right")
+    assert abs(np.linalg.norm(rig.relative_pose("left", "right").t) - 0.12) < 0.001
+    assert read_rig(out / "stereo.yml").relative_pose(0, 1).allclose(rig.relative_pose(0, 1), atol=1e-9)
+    assert read_rig(out / "camchain.yaml").relative_pose(0, 1).allclose(rig.relative_pose(0, 1), atol=1e-9)
+    # Rectify three pairs: the rectified images put the board's corners on the same rows.
+    lp = sorted(left.glob("*.jpg"))[:3]
+    rp = sorted(right.glob("*.jpg"))[:3]
+    for k, (a, b) in enumerate(zip(lp, rp, strict=True)):
+        shutil.copy(a, tmp_path / f"pair_l{k}.jpg")
+        shutil.copy(b, tmp_path / f"pair_r{k}.jpg")
+    code = main(["rectify", str(out / "rig.json"), str(tmp_path / "pair_l*.jpg"), str(tmp_path / "pair_r*.jpg"),
+                 "-o", str(tmp_path / "rect")])
+    assert code == 0, capsys.readouterr().out
+    board = Checkerboard(inner_cols=6, inner_rows=4, square=0.03)
+    rows = []
+    for k in range(3):
+        dl = board.detect(read_image(tmp_path / "rect" / "left" / f"pair_l{k}.png"))
+        dr = board.detect(read_image(tmp_path / "rect" / "right" / f"pair_r{k}.png"))
+        if dl.found and dr.found:
+            rows.append(dl.corners[:, 1] - dr.corners[:, 1])
+    assert rows, "the board was not found in any rectified pair"
+    assert np.sqrt(np.nanmean(np.concatenate(rows) ** 2)) < 0.3
+    assert (tmp_path / "rect" / "stereo.yml").is_file()
+
+
+def test_rectify_refuses_unpaired_inputs_and_keeps_inputs(tmp_path, capsys):
+    cam = BrownConrady(fx=300.0, fy=300.0, cx=159.5, cy=119.5, width=320, height=240, k1=-0.05)
+    board = Checkerboard(inner_cols=5, inner_rows=4, square=0.03)
+    inst = simulate_rig([cam, cam], [Pose.identity(), Pose.from_rvec([0, 0, 0], [-0.1, 0, 0])], board, 2, seed=0)
+    for k, i in enumerate(inst):
+        for side, img in zip("lr", i.images, strict=True):
+            write_png(tmp_path / f"{side}{k}.png", (np.clip(img, 0, 1) * 255).astype(np.uint8))
+    from camkit.calib import CameraRig
+    from camkit.io import save_rig
+
+    save_rig(tmp_path / "rig.json", CameraRig(("a", "b"), (cam, cam),
+                                             (Pose.identity(), Pose.from_rvec([0, 0, 0], [-0.1, 0, 0]))))
+    code = main(["rectify", str(tmp_path / "rig.json"), str(tmp_path / "l*.png"), str(tmp_path / "r0.png"),
+                 "-o", str(tmp_path / "out")])
+    assert code != 0
+    assert "as many right images as left ones" in capsys.readouterr().err
+    code = main(["rectify", str(tmp_path / "rig.json"), str(tmp_path / "l*.png"), str(tmp_path / "r*.png"),
+                 "-o", str(tmp_path / "out"), "--mode", "full"])
+    assert code == 0
+    assert sorted(p.name for p in (tmp_path / "out" / "a").iterdir()) == ["l0.png", "l1.png"]
+    assert not list((tmp_path / "out").rglob("*.tmp*"))
+
+
+def test_calibrate_rig_bad_arguments(tmp_path, capsys):
+    (tmp_path / "a").mkdir()
+    write_png(tmp_path / "a" / "x.png", np.zeros((8, 8), np.uint8))
+    code = main(["calibrate-rig", "--camera", "left", str(tmp_path / "a"), "--board", "6x4", "--square", "30mm"])
+    assert code != 0 and "two or more cameras" in capsys.readouterr().err
+    code = main(["calibrate-rig", "--camera", "l", str(tmp_path / "a"), "--camera", "r", str(tmp_path / "a"),
+                 "--board", "6x4", "--square", "30mm", "--kalibr", str(tmp_path / "c.yaml")])
+    assert code != 0 and "--fix k3" in capsys.readouterr().err
+    code = main(["calibrate-rig", "--camera", "l", str(tmp_path / "a"), "--camera", "l", str(tmp_path / "a"),
+                 "--board", "6x4", "--square", "30mm"])
+    assert code != 0 and "given twice" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["rectify", "rig.json", "a", "b", "-o", "x", "--mode", "2"])
