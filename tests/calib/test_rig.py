@@ -218,3 +218,31 @@ def test_real_bumblebee_pairs_agree_with_opencv_within_sigma(shared_data) -> Non
     w = np.degrees(np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]]) / 2)
     assert (np.abs(w) < 0.1 * r.rotation_sigma_deg[1]).all()
     assert (np.abs(p.t - out[6].ravel()) < 0.1 * r.translation_sigma_m[1]).all()
+
+
+def test_agrees_with_opencv_fisheye_stereo_calibrate() -> None:
+    """Item 6: Kannala-Brandt pairs, intrinsics fixed: cv2.fisheye.stereoCalibrate on the same
+    corners gives the same R and T within 1e-6 relative."""
+    cv2 = pytest.importorskip("cv2")
+    from camkit.lens import KannalaBrandt
+
+    board = Checkerboard(inner_cols=9, inner_rows=6, square=0.04)
+    left = KannalaBrandt(fx=400.0, fy=400.0, cx=639.5, cy=479.5, width=1280, height=960, k1=0.02, k2=-0.01,
+                         k3=0.003, k4=-0.0005)
+    right = KannalaBrandt(fx=405.0, fy=402.0, cx=630.0, cy=470.0, width=1280, height=960, k1=0.025, k2=-0.008,
+                          k3=0.002, k4=-0.0003)
+    inst = simulate_rig([left, right], [Pose.identity(), RIGHT_FROM_LEFT], board, 12, seed=3, render=False)
+    rng = np.random.default_rng(0)
+    views = [[i.corners_px[c] + rng.normal(0, 0.1, i.corners_px[c].shape) for i in inst] for c in range(2)]
+    both = [t for t in range(12) if np.isfinite(views[0][t]).all() and np.isfinite(views[1][t]).all()]
+    views = [[v[t] for t in both] for v in views]
+    r = calibrate_rig(views, board, sizes=(1280, 960), intrinsics=[left, right], reject_sigma=None)
+    obj = [board.object_points().reshape(-1, 1, 3)] * len(both)
+    d = [np.array([m.k1, m.k2, m.k3, m.k4]).reshape(4, 1) for m in (left, right)]
+    out = cv2.fisheye.stereoCalibrate(obj, [v.reshape(-1, 1, 2) for v in views[0]],
+                                      [v.reshape(-1, 1, 2) for v in views[1]], left.K, d[0], right.K, d[1],
+                                      (1280, 960), flags=cv2.CALIB_FIX_INTRINSIC,
+                                      criteria=(cv2.TERM_CRITERIA_COUNT + cv2.TERM_CRITERIA_EPS, 500, 1e-15))
+    p = r.cam_from_rig[1]
+    assert np.abs(p.R - out[5]).max() < 1e-6
+    assert np.linalg.norm(p.t - out[6].ravel()) / np.linalg.norm(out[6]) < 1e-6
