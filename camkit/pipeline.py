@@ -315,12 +315,15 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
                         pair_by: str | None = None, models: Any = "brown-conrady", fix: tuple[str, ...] | None = None,
                         free: tuple[str, ...] | None = None, rig_file: str | os.PathLike | None = None,
                         opencv_file: str | os.PathLike | None = None, kalibr_file: str | os.PathLike | None = None,
+                        report_file: str | os.PathLike | None = None,
                         progress: Callable[[str, int, int], None] | None = None) -> RigJob:
     """Calibrate a camera rig from each camera's image files (``{name: files}``, paired by
     :func:`pair_images`): each image read and the target detected in it, then
     :func:`camkit.calib.calibrate_rig`; the rig written as camkit JSON (``rig_file``), OpenCV
     stereo YAML (``opencv_file``, two cameras) and a Kalibr camchain (``kalibr_file``), each
-    atomically. A camera whose images differ in size is refused naming the file."""
+    atomically, and the report (``report_file``: the first instant both the first two cameras
+    saw is shown rectified; those two images are kept from the detection pass, nothing is
+    decoded twice). A camera whose images differ in size is refused naming the file."""
     from camkit.calib.rig import calibrate_rig
     from camkit.io import read_image
     from camkit.io.rig_files import save_rig, write_kalibr_camchain, write_opencv_stereo_yaml
@@ -333,14 +336,18 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
     total = sum(p is not None for row in paths for p in row)
     views, sizes = [], []
     done = 0
+    shown = next((k for k in range(len(instants)) if paths[0][k] is not None and paths[1][k] is not None), None)
+    pair: list = []
     for c, row in zip(names, paths, strict=True):
         dets: list[Any] = []
         size = None
-        for p in row:
+        for k, p in enumerate(row):
             if p is None:
                 dets.append(None)
                 continue
             img = read_image(p)
+            if report_file is not None and k == shown and len(pair) < 2:
+                pair.append(img)
             size = check_same_size(size, img, str(p))
             dets.append(target.detect(img))
             done += 1
@@ -358,6 +365,15 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
         written.append(write_opencv_stereo_yaml(opencv_file, result))
     if kalibr_file is not None:
         written.append(write_kalibr_camchain(kalibr_file, result))
+    if report_file is not None:
+        from camkit.report import write_rig_report
+
+        stems = []
+        for k in range(len(instants)):
+            first = next(row[k] for row in paths if row[k] is not None)
+            stems.append(instants[k] if pair_by is not None else first.stem)
+        written.append(write_rig_report(report_file, result, pair=pair if len(pair) == 2 else None,
+                                        instant_names=stems))
     return RigJob(result, instants, paths, Path(rig_file) if rig_file is not None else None, written)
 
 

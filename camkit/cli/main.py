@@ -199,7 +199,8 @@ def _cmd_calibrate_rig(args: argparse.Namespace) -> int:
     if args.opencv and len(cams) != 2:
         raise ParameterError(f"--opencv: OpenCV's stereo file holds two cameras; the rig has {len(cams)}")
     every = [p for v in cams.values() for p in v]
-    prepare_outputs({"-o": args.output, "--opencv": args.opencv, "--kalibr": args.kalibr}, every)
+    prepare_outputs({"-o": args.output, "--opencv": args.opencv, "--kalibr": args.kalibr, "--report": args.report},
+                    every)
     instants, paths = pair_images(cams, args.pair_by)
     table = Table(title="Pairing" + (f" (by {args.pair_by!r})" if args.pair_by else " (by sorted order)"),
                   title_justify="left")
@@ -214,7 +215,7 @@ def _cmd_calibrate_rig(args: argparse.Namespace) -> int:
     with _Progress(console) as progress:
         job = calibrate_rig_files(cams, board, pair_by=args.pair_by, models=args.model, fix=fix, free=free,
                                   rig_file=args.output, opencv_file=args.opencv, kalibr_file=args.kalibr,
-                                  progress=progress)
+                                  report_file=args.report, progress=progress)
     r = job.result
     res = Table(title="Rig", title_justify="left")
     for col in ("camera", "boards used", "RMS px", "baseline mm", "rotation sigma deg (x y z)",
@@ -548,6 +549,8 @@ def build_parser() -> argparse.ArgumentParser:
     rig.add_argument("-o", "--output", default="rig.json", help="rig file to write (default rig.json)")
     rig.add_argument("--opencv", metavar="YAML", help="also write OpenCV's stereo file (two cameras)")
     rig.add_argument("--kalibr", metavar="YAML", help="also write a Kalibr camchain")
+    rig.add_argument("--report", metavar="HTML", help="also write an HTML report (the rig from above, a rectified "
+                                                      "pair, every camera)")
     rig.set_defaults(func=_cmd_calibrate_rig)
 
     rect = sub.add_parser("rectify", help="rectify stereo pairs with a rig file")

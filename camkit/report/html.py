@@ -280,8 +280,13 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     if thumbs_html:
         body += ["<h2>Views</h2>", "<p class=note>Detected corners in green, rejected corners as red crosses.</p>",
                  thumbs_html]
+    return write_atomic(path, page(title, body).encode())
+
+
+def page(title: str, body: Sequence[str]) -> str:
+    """The report's HTML page around ``body`` (HTML fragments), with its style and stamp."""
     stamp = datetime.now(UTC).strftime("%Y-%m-%d %H:%M UTC")
-    doc = f"""<!DOCTYPE html>
+    return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>
 <style>
 body {{ font-family: sans-serif; max-width: 1100px; margin: 2em auto; padding: 0 1em; color: #222; }}
@@ -294,7 +299,6 @@ img.fig {{ max-width: 100%; display: block; margin: 0.5em 0 1.5em; }}
 <p class=note>camkit {__version__}, {stamp}.</p>
 </body></html>
 """
-    return write_atomic(path, doc.encode())
 
 
 def _observed(result: Any) -> np.ndarray:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -29,7 +30,8 @@ def test_calibrate_rig_and_rectify_the_bumblebee_pairs(shared_data, tmp_path, ca
     out = tmp_path / "out"
     code = main(["calibrate-rig", "--camera", "left", str(left), "--camera", "right", str(right), "--board", "6x4",
                  "--square", "30mm", "--pair-by", r"(\d+)\.jpg$", "-o", str(out / "rig.json"), "--opencv",
-                 str(out / "stereo.yml"), "--kalibr", str(out / "camchain.yaml"), "--fix", "k3"])
+                 str(out / "stereo.yml"), "--kalibr", str(out / "camchain.yaml"), "--fix", "k3", "--report",
+                 str(out / "report.html")])
     text = capsys.readouterr().out
     assert code == 0, text
     assert "Pairing" in text and "11 instants" in text
@@ -59,6 +61,28 @@ def test_calibrate_rig_and_rectify_the_bumblebee_pairs(shared_data, tmp_path, ca
     assert rows, "the board was not found in any rectified pair"
     assert np.sqrt(np.nanmean(np.concatenate(rows) ** 2)) < 0.3
     assert (tmp_path / "rect" / "stereo.yml").is_file()
+    _check_report_in_a_browser(out / "report.html", tmp_path)
+
+
+def _check_report_in_a_browser(report, tmp_path):
+    text = report.read_text()
+    for head in ("The rig", "The rig from above", "RMS per instant", "A rectified pair", "Camera left",
+                 "Camera right"):
+        assert f"<h2>{head}" in text, head
+    browser = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome", "chrome")
+                    if shutil.which(n)), None)
+    if browser is None:
+        pytest.skip("no Chromium on this machine (.ci/run installs Debian's chromium package where it can); "
+                    "the rig report's browser check was not run")
+    shot = tmp_path / "shot.png"
+    proc = subprocess.run([browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
+                           f"--screenshot={shot}", "--window-size=1200,3200", report.resolve().as_uri()],
+                          capture_output=True, text=True, timeout=120, check=False)
+    assert shot.exists(), proc.stderr[-2000:]
+    img = read_image(shot)[:, :, :3].astype(np.int32)
+    # The embedded figures were decoded: the rectified pair's photos fill many rows with colour.
+    coloured = (img.max(axis=2) - img.min(axis=2)) > 40
+    assert (coloured.mean(axis=1) > 0.2).sum() > 200
 
 
 def test_rectify_refuses_unpaired_inputs_and_keeps_inputs(tmp_path, capsys):
