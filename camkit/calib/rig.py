@@ -324,7 +324,7 @@ def _as_list(x: Any, n: int, name: str) -> list[Any]:
 def _observations(views: Any, targets: Any, names: list[str]) -> tuple[list[list[np.ndarray | None]], list[Target]]:
     """Per camera and instant the (N, 2) pixels (NaN rows: not seen) or None; the target per
     instant."""
-    n_t = len(views[0])
+    n_t = len(views[0]) if isinstance(views[0], list | tuple) else 0
     for c, v in enumerate(views):
         if not isinstance(v, list | tuple):
             raise ShapeError(f"views[{c}] ({names[c]}): expected a list with one detection per instant, got "

@@ -33,6 +33,7 @@ __all__ = [
     "read_colmap_cameras",
     "read_opencv_yaml",
     "save_camera",
+    "versioned_json",
     "write_colmap_cameras",
     "write_kalibr_yaml",
     "write_opencv_yaml",
@@ -82,18 +83,25 @@ def _read_text(path: str | os.PathLike) -> str:
         raise ParameterError(f"{path}: cannot read the camera file ({exc.strerror or exc})") from None
 
 
-def load_camera(path: str | os.PathLike) -> CameraModel:
-    """Read a camera written by :func:`save_camera` (any version up to the current)."""
+def versioned_json(path: str | os.PathLike, fmt: str, kind: str, max_version: int) -> dict[str, Any]:
+    """A camkit JSON file's document, checked: valid JSON, ``"format": fmt`` and a version from
+    1 to ``max_version`` (``kind`` names the file in messages: "camera", "rig")."""
     try:
         doc = json.loads(_read_text(path))
     except json.JSONDecodeError as exc:
         raise ParameterError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(doc, dict) or doc.get("format") != "camkit-camera":
-        raise ParameterError(f"{path}: not a camkit camera file (expected \"format\": \"camkit-camera\")")
+    if not isinstance(doc, dict) or doc.get("format") != fmt:
+        raise ParameterError(f"{path}: not a camkit {kind} file (expected \"format\": \"{fmt}\")")
     version = doc.get("version")
-    if not isinstance(version, int) or not 1 <= version <= CAMERA_FORMAT_VERSION:
-        raise ParameterError(f"{path}: unsupported camera file version {version!r} (this camkit reads 1.."
-                             f"{CAMERA_FORMAT_VERSION})")
+    if not isinstance(version, int) or not 1 <= version <= max_version:
+        raise ParameterError(f"{path}: unsupported {kind} file version {version!r} (this camkit reads 1.."
+                             f"{max_version})")
+    return doc
+
+
+def load_camera(path: str | os.PathLike) -> CameraModel:
+    """Read a camera written by :func:`save_camera` (any version up to the current)."""
+    doc = versioned_json(path, "camkit-camera", "camera", CAMERA_FORMAT_VERSION)
     return model_from_dict(doc.get("model"), f"{path}: model")
 
 

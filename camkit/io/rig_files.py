@@ -29,6 +29,7 @@ from camkit.io.camera_files import (
     _read_text,
     kalibr_entry,
     model_from_dict,
+    versioned_json,
 )
 from camkit.stereo.rectify import rectify
 
@@ -74,16 +75,7 @@ def _vector(x: Any, n: int, where: str) -> np.ndarray:
 
 def load_rig(path: str | os.PathLike) -> CameraRig:
     """Read a rig written by :func:`save_rig` (any version up to the current)."""
-    try:
-        doc = json.loads(_read_text(path))
-    except json.JSONDecodeError as exc:
-        raise ParameterError(f"{path}: not valid JSON ({exc.msg} at line {exc.lineno})") from None
-    if not isinstance(doc, dict) or doc.get("format") != "camkit-rig":
-        raise ParameterError(f"{path}: not a camkit rig file (expected \"format\": \"camkit-rig\")")
-    version = doc.get("version")
-    if not isinstance(version, int) or not 1 <= version <= RIG_FORMAT_VERSION:
-        raise ParameterError(f"{path}: unsupported rig file version {version!r} (this camkit reads 1.."
-                             f"{RIG_FORMAT_VERSION})")
+    doc = versioned_json(path, "camkit-rig", "rig", RIG_FORMAT_VERSION)
     cams = doc.get("cameras")
     if not isinstance(cams, list) or len(cams) < 1:
         raise ParameterError(f"{path}: cameras: expected a list with one entry per camera")
