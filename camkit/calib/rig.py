@@ -25,9 +25,10 @@ import numpy as np
 from camkit._kernels import calib as calib_kernels
 from camkit._validate import as_positive_int, check_choice
 from camkit.calib.calibrate import CalibrationResult, calibrate, held_parameters
-from camkit.calib.pnp import solve_pnp
+from camkit.calib.homography import find_homography
 from camkit.calib.refine import Linearization, LMOptions, solve
 from camkit.calib.views import pose_jacobian, reject_outliers
+from camkit.calib.zhang import poses_from_homographies
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.geometry.pose import Pose
 from camkit.geometry.rotation import matrix_from_rvec
@@ -341,11 +342,15 @@ def _observations(views: Any, targets: Any, names: list[str]) -> tuple[list[list
         tgts = list(targets)
     else:
         raise ParameterError(f"targets: expected a camkit target (or one per instant), got {type(targets).__name__}")
+    sizes: dict[int, int] = {}
+    for g in tgts:
+        if id(g) not in sizes:
+            sizes[id(g)] = len(g.object_points())
     obs: list[list[np.ndarray | None]] = []
     for c, v in enumerate(views):
         row: list[np.ndarray | None] = []
         for t, d in enumerate(v):
-            n_pts = len(tgts[t].object_points())
+            n_pts = sizes[id(tgts[t])]
             if d is None:
                 row.append(None)
                 continue
@@ -416,6 +421,11 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     reference = int(reference)
     obs, tgts = _observations(views, targets, names)
     n_t = len(tgts)
+    points: dict[int, np.ndarray] = {}
+    for g in tgts:
+        if id(g) not in points:
+            points[id(g)] = g.object_points()
+    obj_of = [points[id(g)] for g in tgts]  # each instant's target points, computed once a target
     given = _as_list(intrinsics, n_c, "intrinsics") if intrinsics is not None else [None] * n_c
     for c, m in enumerate(given):
         if m is not None and not isinstance(m, CameraModel):
@@ -451,17 +461,25 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     classes, start_models, cam_poses = [], [], []
     for c in range(n_c):
         ts_c = np.flatnonzero(seen[c])
-        objs = [tgts[t].object_points() for t in ts_c]
+        objs = [obj_of[t] for t in ts_c]
         imgs = [obs[c][t] for t in ts_c]
         poses: dict[int, Pose] = {}
         if given[c] is not None:
+            # The poses' start from each view's homography onto the normalised image plane
+            # (Zhang's decomposition, all views at once); the joint fit refines them.
             m = given[c]
-            for t, o, p in zip(ts_c, objs, imgs, strict=True):
-                ok = np.isfinite(p).all(axis=1)
+            Hs, ts_ok = [], []
+            all_rays = np.split(m.unproject(np.concatenate(imgs)), np.cumsum([len(p) for p in imgs])[:-1])
+            for t, o, rays in zip(ts_c, objs, all_rays, strict=True):
+                ok = np.isfinite(rays).all(axis=1) & (rays[:, 2] > 1e-6)
+                if ok.sum() < 4:
+                    continue
                 try:
-                    poses[int(t)] = solve_pnp(o[ok], p[ok], m).cam_from_object
+                    Hs.append(find_homography(o[ok, :2], rays[ok, :2] / rays[ok, 2:], refine=False))
                 except EstimationError:
                     continue
+                ts_ok.append(int(t))
+            poses = dict(zip(ts_ok, poses_from_homographies(np.eye(3), Hs), strict=True))
         else:
             try:
                 single = calibrate(objs, imgs, width=sz[c][0], height=sz[c][1], model=model_names[c], fix=fix,
@@ -490,10 +508,13 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
                 shared = sorted(set(cam_poses[c]) & set(cam_poses[p]))
                 if not shared:
                     continue
-                rel = [cam_poses[c][t] @ cam_poses[p][t].inverse() for t in shared]
-                R = _rotation_medoid([r.R for r in rel])
-                tv = np.median(np.array([r.t for r in rel]), axis=0)
-                cam_from_ref[c] = Pose(R, tv) @ cam_from_ref[p]
+                # cam_c_from_cam_p at each shared instant: R_c R_p^T, t_c - R_c R_p^T t_p.
+                Rc = np.array([cam_poses[c][t].R for t in shared])
+                Rp = np.array([cam_poses[p][t].R for t in shared])
+                Rrel = Rc @ Rp.transpose(0, 2, 1)
+                trel = np.array([cam_poses[c][t].t for t in shared]) - np.einsum(
+                    "nij,nj->ni", Rrel, np.array([cam_poses[p][t].t for t in shared]))
+                cam_from_ref[c] = Pose(_rotation_medoid(list(Rrel)), np.median(trel, axis=0)) @ cam_from_ref[p]
                 nxt.append(c)
         frontier = nxt
     lonely = [names[c] for c in range(n_c) if c not in cam_from_ref]
@@ -527,7 +548,7 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     iterations = 0
     for rnd, tol in enumerate(tolerances):
         final = rnd == len(tolerances) - 1
-        blocks = [(c, g_of[t], tgts[t].object_points()[m], obs[c][t][m]) for (c, t), m in zip(keys, masks, strict=True)]
+        blocks = [(c, g_of[t], obj_of[t][m], obs[c][t][m]) for (c, t), m in zip(keys, masks, strict=True)]
         problem = _RigProblem(classes, sz, names, free_idx, reference, blocks, len(groups))
         report = solve(problem, state, LMOptions(max_iterations=max_iterations, tolerance=tol,
                                                  robust_loss=robust_loss, covariance=final))
@@ -537,12 +558,12 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
             break
         for k, i, why in reject_outliers(report.residuals, masks, list(range(len(keys))), reject_sigma):
             rejected.append((keys[k][0], keys[k][1], i, why))
-    return _result(problem, report, state, keys, masks, obs, tgts, names, reference, groups, n_t, rejected,
+    return _result(problem, report, state, keys, masks, obs, obj_of, names, reference, groups, n_t, rejected,
                    iterations)
 
 
 def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tuple[int, int]],
-            masks: list[np.ndarray], obs: list[list[np.ndarray | None]], tgts: list[Target], names: list[str],
+            masks: list[np.ndarray], obs: list[list[np.ndarray | None]], obj_of: list[np.ndarray], names: list[str],
             reference: int, groups: list[int], n_t: int, rejected: list[tuple[int, int, int, str]],
             iterations: int) -> RigResult:
     n_c = len(names)
@@ -573,7 +594,9 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
     for c in range(n_c):
         model = problem.model(state, c)
         inst = sorted(per_cam[c])
-        poses = [cam_from_rig[c] @ rig_from_target[t] for t in inst]
+        # cam_from_target = cam_from_rig @ rig_from_target (exact rotations: no re-projection).
+        poses = [Pose._unchecked(state.Rc[c] @ rig_from_target[t].R, state.Rc[c] @ rig_from_target[t].t + state.tc[c])
+                 for t in inst]
         resid = [per_cam[c][t] for t in inst]
         R = np.concatenate([r[np.isfinite(r).all(axis=1)] for r in resid])
         o = problem.intr_off[c]
@@ -589,8 +612,8 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
             rejected=[(t, i, why) for cc, t, i, why in rejected if cc == c], view_indices=tuple(inst),
             rejected_views=[(t, "the target was not seen there (4 or more corners)") for t in range(n_t)
                             if t not in per_cam[c]],
-            object_points=[tgts[t].object_points() for t in range(n_t)],
-            image_points=[obs[c][t] if obs[c][t] is not None else np.full((len(tgts[t].object_points()), 2), np.nan)
+            object_points=list(obj_of),
+            image_points=[obs[c][t] if obs[c][t] is not None else np.full((len(obj_of[t]), 2), np.nan)
                           for t in range(n_t)],
             converged=report.converged, iterations=iterations, cost=report.cost, message=report.message))
     rot_sig = np.zeros((n_c, 3))
