@@ -200,30 +200,71 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
 
 @dataclass(frozen=True, slots=True)
 class UndistortJob:
-    """What :func:`undistort_files` wrote: the PNG files (in input order), their folder, and
-    the pinhole camera they were taken with."""
+    """What :func:`undistort_files` wrote: the PNG files (in input order; those of failed
+    inputs missing), their folder, the pinhole camera they were taken with, and the batch's
+    summary (done, skipped, failed with reasons, images per second)."""
 
     written: list[Path]
     out_dir: Path
     new_model: CameraModel
+    summary: Any = None
+
+
+#: Per worker process: maps built from a recipe scattered to it, by the recipe's token (a
+#: worker builds each map once, not once a task).
+_WORKER_MAPS: dict[str, Any] = {}
+
+
+def _worker_map(ctx: dict[str, Any]) -> Any:
+    token = ctx["token"]
+    if token not in _WORKER_MAPS:
+        _WORKER_MAPS.clear()  # one job's maps at a time
+        _WORKER_MAPS[token] = ctx["build"](*ctx["args"])
+    return _WORKER_MAPS[token]
+
+
+def _undistort_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
+    """One batch task: read an image, check its size, remap it, write the PNG atomically."""
+    from camkit.io import read_image, write_png
+    from camkit.resample import remap
+
+    model = ctx["model"]
+    img = read_image(item["input"])
+    if img.shape[1] != model.width or img.shape[0] != model.height:
+        raise ParameterError(f"{item['input']}: expected {model.width}x{model.height} (the camera's size), got "
+                             f"{img.shape[1]}x{img.shape[0]}")
+    write_png(Path(ctx["out_dir"]) / item["outputs"][0],
+              remap(img, _worker_map(ctx), interpolation=ctx["interpolation"]))
+    return {"outputs": item["outputs"]}
+
+
+def _undistort_map(model: CameraModel, new: CameraModel) -> Any:
+    from camkit.resample import reproject_map
+
+    return reproject_map(model, new)
 
 
 def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_dir: str | os.PathLike, *,
                     alpha: float = 0.0, interpolation: str = "bicubic",
                     progress: Callable[[str, int, int], None] | None = None,
-                    output_option: str = "out_dir") -> UndistortJob:
+                    output_option: str = "out_dir", client: Any = None, scheduler: str | None = None,
+                    workers: int | None = None, resume: bool = False) -> UndistortJob:
     """Undistort image files into ``out_dir`` as PNG (same stem), seen through the pinhole
     :func:`camkit.resample.optimal_pinhole` (``alpha``: 0 keeps only valid pixels, 1 keeps
-    every source pixel) of ``model``.
+    every source pixel) of ``model``: a batch job on Dask (:func:`camkit.batch.run_batch`;
+    ``client``, ``scheduler``, ``workers`` say where, ``resume`` skips inputs already done).
 
     Everything is checked before the first file is written: the folder is created (or
     refused), no two inputs share a stem, no output is one of the inputs. Each file is written
-    atomically; an image whose size is not the camera's is refused with its name.
-    ``progress(stage, done, total)`` is called after each image (stage ``"undistort"``);
-    ``output_option`` names the output in messages (the command line's ``-o``).
+    atomically; an image whose size is not the camera's fails with its name (the others
+    complete; ``job.summary.failed`` lists it). ``progress(stage, done, total)`` is called
+    after each image (stage ``"undistort"``); ``output_option`` names the output in messages
+    (the command line's ``-o``).
     """
-    from camkit.io import read_image, write_png
-    from camkit.resample import optimal_pinhole, undistort_image
+    import uuid
+
+    from camkit.batch import run_batch
+    from camkit.resample import optimal_pinhole
 
     if not isinstance(model, CameraModel):
         raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
@@ -239,19 +280,19 @@ def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_
         if t.resolve() in inputs:
             raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
     new = optimal_pinhole(model, alpha)
+    from camkit.resample.kernels import interpolation_code
+
+    interpolation_code(interpolation)  # a misspelt name fails here, before any work
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
-    for k, (src, dst) in enumerate(zip(images, targets, strict=True)):
-        img = read_image(src)
-        if img.shape[1] != model.width or img.shape[0] != model.height:
-            raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
-                                 f"{img.shape[1]}x{img.shape[0]}")
-        write_png(dst, undistort_image(img, model, new, interpolation=interpolation))
-        if progress is not None:
-            progress("undistort", k + 1, len(targets))
-    return UndistortJob(targets, out, new)
+    items = [{"key": p.name, "input": str(p), "outputs": [t.name]} for p, t in zip(images, targets, strict=True)]
+    ctx = {"model": model, "out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex,
+           "build": _undistort_map, "args": (model, new)}
+    summary = run_batch(_undistort_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
+                        resume=resume, progress=progress, stage="undistort")
+    return UndistortJob([t for t in targets if t.is_file()], out, new, summary)
 
 
 def _natural(key: str) -> tuple:

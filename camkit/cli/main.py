@@ -325,11 +325,29 @@ def _cmd_undistort(args: argparse.Namespace) -> int:
     images = collect_images(args.images).paths
     with _Progress(console) as progress:
         job = undistort_files(images, model, args.output, alpha=args.alpha, interpolation=args.interpolation,
-                              progress=progress, output_option="-o")
+                              progress=progress, output_option="-o", scheduler=args.scheduler, workers=args.workers,
+                              resume=args.resume)
     new = job.new_model
     console.print(f"wrote {len(job.written)} images to {job.out_dir}; the undistorted camera is a pinhole with "
                   f"fx={new.fx:.2f} fy={new.fy:.2f} cx={new.cx:.2f} cy={new.cy:.2f} ({new.width}x{new.height})")
-    return 0
+    return _batch_summary(console, job.summary)
+
+
+def _batch_summary(console, summary) -> int:
+    """Print a batch job's summary and its failed inputs; exit status 1 where any failed."""
+    console.print(summary.line() + f"; manifest {summary.manifest}")
+    for name, why in summary.failed:
+        console.print(f"[red]failed[/red] {name}: {why}")
+    return 1 if summary.failed else 0
+
+
+def _batch_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--workers", type=int, help="worker processes of the local Dask cluster (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run on this dask.distributed scheduler, e.g. tcp://host:8786 (default: "
+                        "$DASK_SCHEDULER_ADDRESS, else a local cluster)")
+    p.add_argument("--resume", action="store_true",
+                   help="skip inputs the output folder's manifest records as done (same input bytes, outputs present)")
 
 
 def _cmd_lens(args: argparse.Namespace) -> int:
@@ -595,6 +613,7 @@ def build_parser() -> argparse.ArgumentParser:
     und.add_argument("--alpha", type=float, default=0.0,
                      help="0: crop to valid pixels (default); 1: keep every source pixel")
     und.add_argument("--interpolation", default="bicubic", choices=("nearest", "bilinear", "bicubic", "lanczos3"))
+    _batch_options(und)
     und.set_defaults(func=_cmd_undistort)
 
     lens = sub.add_parser("lens", help="lens calculators: depth of field, field of view, exposure")

@@ -1,0 +1,257 @@
+"""Batch jobs on Dask: each input one task, locally or on a dask.distributed cluster.
+
+``camkit undistort``, ``camkit rectify``, ``camkit detect`` and ``camkit simulate`` run their
+images through :func:`run_batch`:
+
+- **Where**: a ``dask.distributed.Client`` given by the caller; else the scheduler at
+  ``scheduler`` (or the ``DASK_SCHEDULER_ADDRESS`` variable); else a local cluster of worker
+  processes sized to the machine (``workers`` processes, one task thread each, and numba's
+  threads per worker set so that workers x threads = cores).
+- **Streaming**: inputs are read inside the tasks; what every task needs (the camera, a map's
+  recipe, the target) is scattered to the workers once and cached there; at most a few tasks
+  per worker are in flight, so memory stays bounded whatever the number of inputs.
+- **Nothing lost, nothing twice**: every output is written atomically (a temporary file, then a
+  rename); a task whose worker dies is run again elsewhere (Dask's own retry) and rewrites the
+  same files; temporary files a killed worker left are removed at the end. A failing input
+  (a corrupt file) is reported by name and the others complete. A manifest (JSON lines in the
+  output folder) records every input with the SHA-256 of its bytes and its outputs; with
+  ``resume`` an input whose record says done, with the same hash and every output present, is
+  skipped.
+
+Nothing here schedules work itself: Dask does (M. Rocklin, "Dask: parallel computation with
+blocked algorithms and task scheduling", SciPy 2015).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from camkit._atomic import write_atomic
+from camkit.errors import CamkitError, ParameterError
+
+__all__ = ["BatchSummary", "connect", "file_sha256", "run_batch"]
+
+#: The manifest's name in a job's output folder.
+MANIFEST = "manifest.jsonl"
+
+
+@dataclass(frozen=True, slots=True)
+class BatchSummary:
+    """What a batch job did.
+
+    Attributes
+    ----------
+    done, skipped : int
+        Inputs processed now, and inputs skipped as already complete (``resume``).
+    failed : list of (input, error)
+    seconds : float
+    results : dict
+        Per input key, what its task returned (outputs, and the task's own record).
+    manifest : Path
+    workers : int
+        Workers of the cluster the job ran on.
+    """
+
+    done: int
+    skipped: int
+    failed: list[tuple[str, str]]
+    seconds: float
+    results: dict[str, dict[str, Any]] = field(default_factory=dict)
+    manifest: Path | None = None
+    workers: int = 0
+
+    @property
+    def per_second(self) -> float:
+        """Inputs processed per second (skipped ones not counted)."""
+        return (self.done + len(self.failed)) / self.seconds if self.seconds > 0 else float("nan")
+
+    def line(self) -> str:
+        """One line for a person: done, skipped, failed, images per second."""
+        return (f"{self.done} done, {self.skipped} skipped, {len(self.failed)} failed in {self.seconds:.1f} s "
+                f"({self.per_second:.2f} images/s on {self.workers} workers)")
+
+
+def file_sha256(path: str | os.PathLike) -> str:
+    """The SHA-256 of a file's bytes, hex."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()
+
+
+def connect(client: Any = None, *, scheduler: str | None = None, workers: int | None = None) -> tuple[Any, Any]:
+    """A Dask client, and the local cluster made for it (None when the caller's client or a
+    remote scheduler is used; the caller closes what is returned).
+
+    ``client``: used as it is. ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``): a
+    dask.distributed scheduler's address, ``tcp://host:port``. Else a local cluster of
+    ``workers`` processes (the machine's cores by default), one thread each for tasks, numba
+    limited to ``cores // workers`` threads per worker, the dashboard off, on the loopback
+    interface only."""
+    from dask.distributed import Client, LocalCluster
+
+    if client is not None:
+        if not isinstance(client, Client):
+            raise ParameterError(f"client: expected a dask.distributed.Client, got {type(client).__name__}")
+        return client, None
+    address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
+    if address:
+        try:
+            return Client(address, timeout=30), None
+        except OSError as exc:
+            raise ParameterError(f"scheduler: cannot reach the Dask scheduler at {address} ({exc})") from None
+    cores = os.cpu_count() or 1
+    n = cores if workers is None else workers
+    if isinstance(n, bool) or not isinstance(n, int) or n < 1:
+        raise ParameterError(f"workers: expected a positive number of worker processes, got {workers!r}")
+    threads = str(max(cores // n, 1))
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                           host="127.0.0.1", env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads})
+    return Client(cluster), cluster
+
+
+def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
+    """The manifest's records by key; lines that are not complete JSON (a job killed while
+    appending) are ignored."""
+    out: dict[str, dict[str, Any]] = {}
+    if not path.is_file():
+        return out
+    for line in path.read_text(encoding="utf-8", errors="replace").splitlines():
+        try:
+            rec = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(rec, dict) and isinstance(rec.get("key"), str):
+            out[rec["key"]] = rec
+    return out
+
+
+def _complete(rec: dict[str, Any] | None, item: dict[str, Any], out_dir: Path) -> bool:
+    if rec is None or rec.get("status") != "done":
+        return False
+    if item.get("input") is not None and rec.get("input_sha256") != file_sha256(item["input"]):
+        return False
+    return all((out_dir / o).is_file() for o in rec.get("outputs", []))
+
+
+def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: Any) -> dict[str, Any]:
+    """Run one task on a worker: the task's record, or the failure with its reason."""
+    t0 = time.perf_counter()
+    try:
+        rec = dict(func(item, context))
+        rec.setdefault("status", "done")
+    except (CamkitError, OSError, ValueError) as exc:
+        rec = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
+    rec["key"] = item["key"]
+    rec["seconds"] = time.perf_counter() - t0
+    if item.get("input") is not None:
+        try:
+            rec["input"] = str(item["input"])
+            rec["input_sha256"] = file_sha256(item["input"])
+        except OSError as exc:
+            rec.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+    return rec
+
+
+def _remove_temporaries(out_dir: Path, outputs: Sequence[str]) -> None:
+    """Temporary files (``.<name>.*``, camkit's atomic writes) a killed worker left beside the
+    outputs."""
+    for o in outputs:
+        p = out_dir / o
+        if p.parent.is_dir():
+            for tmp in p.parent.glob(f".{p.name}.*"):
+                tmp.unlink(missing_ok=True)
+
+
+def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequence[dict[str, Any]], context: Any,
+              out_dir: str | os.PathLike, *, client: Any = None, scheduler: str | None = None,
+              workers: int | None = None, resume: bool = False,
+              progress: Callable[[str, int, int], None] | None = None, stage: str = "batch",
+              in_flight_per_worker: int = 2) -> BatchSummary:
+    """Run ``func(item, context)`` for every item on Dask, one task an item.
+
+    Parameters
+    ----------
+    func : callable
+        A module-level function (workers import it): reads its input, writes its outputs into
+        ``out_dir`` atomically, returns a JSON-ready record with ``outputs`` (names relative to
+        ``out_dir``). An exception (camkit's, OSError, ValueError) marks the item failed, with
+        the reason.
+    items : list of dict
+        Each with a unique ``key`` (str) and ``input`` (a path, or None for generated items),
+        and whatever ``func`` needs; ``outputs`` (names relative to ``out_dir``) lets ``resume``
+        and the clean-up know them before the task runs.
+    context : object
+        What every task needs; scattered to the workers once (broadcast), not sent with each
+        task.
+    out_dir : folder of the outputs and the manifest
+    client, scheduler, workers : where to run (:func:`connect`)
+    resume : skip items the manifest records as done with the same input and present outputs
+    progress : ``progress(stage, done, total)`` after each item
+    in_flight_per_worker : tasks submitted ahead per worker (bounds memory)
+
+    Returns
+    -------
+    BatchSummary
+    """
+    from dask.distributed import as_completed
+
+    out = Path(out_dir)
+    keys = [it.get("key") for it in items]
+    if len(set(keys)) != len(keys) or not all(isinstance(k, str) for k in keys):
+        raise ParameterError("items: expected a unique string key per item")
+    out.mkdir(parents=True, exist_ok=True)
+    manifest = out / MANIFEST
+    previous = _read_manifest(manifest) if resume else {}
+    todo = [it for it in items if not (resume and _complete(previous.get(it["key"]), it, out))]
+    skipped = len(items) - len(todo)
+    records: dict[str, dict[str, Any]] = {k: previous[k] for k in keys if k in previous and resume}
+    t0 = time.perf_counter()
+    cl, cluster = connect(client, scheduler=scheduler, workers=workers)
+    n_workers = 0
+    try:
+        n_workers = max(len(cl.scheduler_info().get("workers", {})), 1)
+        ctx = cl.scatter(context, broadcast=True, hash=False)
+        limit = max(in_flight_per_worker * n_workers, 1)
+        pending = iter(todo)
+        ac = as_completed()
+        for it in pending:
+            ac.add(cl.submit(_call, func, it, ctx, key=f"camkit-{stage}-{it['key']}-{id(ctx)}", pure=False))
+            if ac.count() >= limit:
+                break
+        done_n = 0
+        with open(manifest, "a", encoding="utf-8") as log:
+            for fut in ac:
+                rec = fut.result()
+                fut.release()
+                records[rec["key"]] = rec
+                log.write(json.dumps(rec) + "\n")
+                log.flush()
+                done_n += 1
+                if progress is not None:
+                    progress(stage, done_n + skipped, len(items))
+                nxt = next(pending, None)
+                if nxt is not None:
+                    ac.add(cl.submit(_call, func, nxt, ctx, key=f"camkit-{stage}-{nxt['key']}-{id(ctx)}", pure=False))
+    finally:
+        if cluster is not None:
+            cl.close()
+            cluster.close()
+    _remove_temporaries(out, [o for it in items for o in it.get("outputs", [])]
+                        + [o for r in records.values() for o in r.get("outputs", [])])
+    # The manifest, rewritten whole and atomically: one record per input, this run's or the
+    # one it skipped on.
+    write_atomic(manifest, "".join(json.dumps(records[k]) + "\n" for k in keys if k in records).encode())
+    failed = [(str(records[k].get("input", k)), records[k].get("error", "")) for k in keys
+              if k in records and records[k].get("status") == "failed"]
+    done = sum(1 for it in todo if records.get(it["key"], {}).get("status") == "done")
+    return BatchSummary(done=done, skipped=skipped, failed=failed, seconds=time.perf_counter() - t0,
+                        results=records, manifest=manifest, workers=n_workers)

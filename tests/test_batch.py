@@ -1,0 +1,110 @@
+"""Batch jobs on a real dask.distributed LocalCluster (issue 25): outputs, the manifest,
+failing inputs, resume, and a worker process killed mid-run."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+from camkit.io import read_image, write_png
+from camkit.lens import BrownConrady
+from camkit.pipeline import undistort_files
+
+distributed = pytest.importorskip("distributed")
+
+CAM = BrownConrady(fx=200.0, fy=200.0, cx=159.5, cy=119.5, width=320, height=240, k1=-0.15)
+
+
+@pytest.fixture(scope="module")
+def client():
+    """Two worker processes on the loopback interface, one task thread each (numba on one
+    thread: two cores in CI)."""
+    from dask.distributed import Client, LocalCluster
+
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                           host="127.0.0.1", env={"NUMBA_NUM_THREADS": "1"})
+    c = Client(cluster, timeout=60)
+    yield c
+    c.close()
+    cluster.close()
+
+
+@pytest.fixture()
+def images(tmp_path):
+    rng = np.random.default_rng(0)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    paths = []
+    for k in range(12):
+        paths.append(write_png(folder / f"img{k:02d}.png", rng.integers(0, 256, (240, 320), dtype=np.uint8)))
+    return paths
+
+
+def test_outputs_manifest_and_a_corrupt_input(client, images, tmp_path):
+    bad = images[0].parent / "corrupt.png"
+    bad.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00" * 50)
+    out = tmp_path / "out"
+    job = undistort_files([*images, bad], CAM, out, client=client)
+    s = job.summary
+    assert s.done == 12 and s.skipped == 0 and [f for f, _ in s.failed] == [str(bad)]
+    assert "corrupt.png" in s.failed[0][1] or "not" in s.failed[0][1]
+    assert sorted(p.name for p in out.glob("*.png")) == [f"img{k:02d}.png" for k in range(12)]
+    # The same pixels as the single-process path.
+    from camkit.resample import undistort_image
+
+    ref = undistort_image(read_image(images[3]), CAM, job.new_model, interpolation="bicubic")
+    assert np.array_equal(read_image(out / "img03.png"), ref)
+    recs = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert len(recs) == 13 and {r["status"] for r in recs} == {"done", "failed"}
+    assert all(len(r["input_sha256"]) == 64 for r in recs)
+
+
+def test_resume_skips_what_is_complete(client, images, tmp_path):
+    out = tmp_path / "out"
+    undistort_files(images, CAM, out, client=client)
+    again = undistort_files(images, CAM, out, client=client, resume=True).summary
+    assert again.done == 0 and again.skipped == 12
+    # A changed input and a deleted output are done again; the rest is skipped.
+    write_png(images[1], np.zeros((240, 320), np.uint8))
+    (out / "img05.png").unlink()
+    third = undistort_files(images, CAM, out, client=client, resume=True).summary
+    assert third.done == 2 and third.skipped == 10
+    assert read_image(out / "img01.png").max() == 0
+
+
+def test_a_worker_killed_mid_run_does_not_stop_the_job(client, tmp_path):
+    """One worker process is killed (SIGKILL) after the first image is done: its tasks run
+    again on the other worker or the restarted one; every output exists exactly once and no
+    temporary file is left."""
+    rng = np.random.default_rng(1)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    big = BrownConrady(fx=800.0, fy=800.0, cx=639.5, cy=479.5, width=1280, height=960, k1=-0.15)
+    paths = [write_png(folder / f"v{k:02d}.png", rng.integers(0, 256, (960, 1280, 3), dtype=np.uint8))
+             for k in range(24)]
+    out = tmp_path / "out"
+    out.mkdir()
+    # A temporary file as a killed writer leaves one: cleaned up at the end.
+    (out / ".v03.png.abandoned").write_bytes(b"half")
+    pids = client.run(os.getpid)
+    killed = []
+
+    def progress(stage, done, total):
+        if done == 1 and not killed:
+            victim = sorted(pids.values())[0]
+            killed.append(victim)
+            threading.Thread(target=os.kill, args=(victim, signal.SIGKILL)).start()
+
+    job = undistort_files(paths, big, out, client=client, progress=progress, interpolation="bilinear")
+    assert killed
+    assert job.summary.done == 24 and not job.summary.failed
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["manifest.jsonl"] + [f"v{k:02d}.png" for k in range(24)]
+    recs = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
+    assert sorted(r["key"] for r in recs) == sorted(p.name for p in paths)
+    client.wait_for_workers(2, timeout=60)
