@@ -19,9 +19,9 @@ from camkit.target import Target
 #: Width of the thumbnails kept for the report (pixels).
 THUMBNAIL_WIDTH = 240
 
-__all__ = ["CalibrationJob", "InputImages", "RectifyJob", "RigJob", "UndistortJob", "calibrate_files",
-           "calibrate_rig_files", "collect_images", "pair_images", "prepare_outputs", "rectify_files",
-           "undistort_files"]
+__all__ = ["DETECTION_FORMAT_VERSION", "CalibrationJob", "DetectJob", "InputImages", "RectifyJob", "RigJob",
+           "SimulateJob", "UndistortJob", "calibrate_files", "calibrate_rig_files", "collect_images", "detect_files",
+           "iter_dataset", "pair_images", "prepare_outputs", "rectify_files", "simulate_files", "undistort_files"]
 
 
 @dataclass(frozen=True, slots=True)
@@ -420,30 +420,60 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
 
 @dataclass(frozen=True, slots=True)
 class RectifyJob:
-    """What :func:`rectify_files` wrote: the rectified pairs (left, right), the folder, the
-    rectification, and its OpenCV stereo file."""
+    """What :func:`rectify_files` wrote: the rectified pairs (left, right; those of failed
+    pairs missing), the folder, the rectification, its OpenCV stereo file, and the batch's
+    summary."""
 
     written: list[tuple[Path, Path]]
     out_dir: Path
     rectification: Any
     stereo_file: Path
+    summary: Any = None
+
+
+def _rectify_maps(rect: Any) -> Any:
+    from camkit.stereo import rectify_maps
+
+    return rectify_maps(rect)
+
+
+def _rectify_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
+    """One batch task: read a stereo pair, check the sizes, remap both, write both PNGs."""
+    from camkit.io import read_image, write_png
+    from camkit.resample import remap
+
+    maps = _worker_map(ctx)
+    rect = ctx["build_args"][0]
+    for src, dst, model, m in zip(item["inputs"], item["outputs"], (rect.left_model, rect.right_model), maps,
+                                  strict=True):
+        img = read_image(src)
+        if img.shape[1] != model.width or img.shape[0] != model.height:
+            raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
+                                 f"{img.shape[1]}x{img.shape[0]}")
+        write_png(Path(ctx["out_dir"]) / dst, remap(img, m, interpolation=ctx["interpolation"]))
+    return {"outputs": item["outputs"]}
 
 
 def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[str | os.PathLike],
                   out_dir: str | os.PathLike, *, cameras: tuple[str | int, str | int] = (0, 1),
                   mode: str | float = "valid", interpolation: str = "bilinear",
                   progress: Callable[[str, int, int], None] | None = None,
-                  output_option: str = "out_dir") -> RectifyJob:
+                  output_option: str = "out_dir", client: Any = None, scheduler: str | None = None,
+                  workers: int | None = None, resume: bool = False) -> RectifyJob:
     """Rectify stereo pairs (the k-th left file with the k-th right one) of cameras
     ``cameras`` of ``rig`` (a CameraRig or RigResult) into ``out_dir/<left name>/`` and
     ``out_dir/<right name>/`` as PNG (same stems), with ``out_dir/stereo.yml`` (OpenCV's
-    M1 ... Q). Everything is checked before the first file is written; each file is written
-    atomically; an image whose size is not its camera's is refused with its name."""
+    M1 ... Q). A batch job on Dask (:func:`camkit.batch.run_batch`, one task a pair; each
+    worker builds the maps once). Everything is checked before the first file is written;
+    each file is written atomically; a pair whose image is not its camera's size fails with
+    its name while the others complete."""
+    import uuid
+
+    from camkit.batch import run_batch
     from camkit.calib.rig import CameraRig, RigResult
-    from camkit.io import read_image, write_png
     from camkit.io.rig_files import write_opencv_stereo_yaml
-    from camkit.resample import remap
-    from camkit.stereo import rectify, rectify_maps
+    from camkit.resample.kernels import interpolation_code
+    from camkit.stereo import rectify
 
     r = rig.rig if isinstance(rig, RigResult) else rig
     if not isinstance(r, CameraRig):
@@ -452,12 +482,12 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
     ls, rs = [Path(p) for p in left], [Path(p) for p in right]
     if len(ls) != len(rs):
         raise ParameterError(f"LEFT, RIGHT: expected as many right images as left ones, got {len(ls)} and {len(rs)}")
+    interpolation_code(interpolation)
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the rectified images")
-    targets = [(out / r.names[a] / (p.stem + ".png"), out / r.names[b] / (q.stem + ".png")) for p, q in zip(ls, rs,
-                                                                                                      strict=True)]
-    flat = [t for pair in targets for t in pair]
+    names = [(f"{r.names[a]}/{p.stem}.png", f"{r.names[b]}/{q.stem}.png") for p, q in zip(ls, rs, strict=True)]
+    flat = [out / n for pair in names for n in pair]
     if len({t.resolve() for t in flat}) != len(flat):
         raise ParameterError("LEFT, RIGHT: two inputs of one camera have the same name; their outputs would "
                              "overwrite each other")
@@ -466,7 +496,6 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
         if t.resolve() in inputs:
             raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
     rect = rectify(r.models[a], r.models[b], r.relative_pose(a, b), mode=mode)
-    maps = rectify_maps(rect)
     try:
         for d in (out / r.names[a], out / r.names[b]):
             d.mkdir(parents=True, exist_ok=True)
@@ -474,13 +503,198 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
         raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
     sub = CameraRig((r.names[a], r.names[b]), (r.models[a], r.models[b]), (r.cam_from_rig[a], r.cam_from_rig[b]))
     stereo_file = write_opencv_stereo_yaml(out / "stereo.yml", sub, mode=mode)
-    for k, ((p, q), (tp, tq)) in enumerate(zip(zip(ls, rs, strict=True), targets, strict=True)):
-        for src, dst, model, m in ((p, tp, r.models[a], maps[0]), (q, tq, r.models[b], maps[1])):
-            img = read_image(src)
-            if img.shape[1] != model.width or img.shape[0] != model.height:
-                raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
-                                     f"{img.shape[1]}x{img.shape[0]}")
-            write_png(dst, remap(img, m, interpolation=interpolation))
-        if progress is not None:
-            progress("rectify", k + 1, len(ls))
-    return RectifyJob(targets, out, rect, stereo_file)
+    items = [{"key": f"{p.name}|{q.name}", "input": str(p), "inputs": [str(p), str(q)], "outputs": list(n)}
+             for p, q, n in zip(ls, rs, names, strict=True)]
+    ctx = {"out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex, "build": _rectify_maps,
+           "args": (rect,), "build_args": (rect,)}
+    summary = run_batch(_rectify_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
+                        resume=resume, progress=progress, stage="rectify")
+    written = [(out / n[0], out / n[1]) for n in names if (out / n[0]).is_file() and (out / n[1]).is_file()]
+    return RectifyJob(written, out, rect, stereo_file, summary)
+
+
+#: Version of the detection files (``camkit detect``).
+DETECTION_FORMAT_VERSION = 1
+
+
+def _detect_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
+    """One batch task: read an image, detect the target, write its detection as JSON."""
+    import json as _json
+
+    import numpy as np
+
+    from camkit._atomic import write_atomic
+    from camkit.io import read_image
+
+    img = read_image(item["input"])
+    det = ctx["target"].detect(img)
+    ids = det.ids
+    doc = {"format": "camkit-detection", "version": DETECTION_FORMAT_VERSION, "image": Path(item["input"]).name,
+           "width": int(img.shape[1]), "height": int(img.shape[0]), "target": ctx["target_dict"],
+           "pixel_origin": "centre of the top-left pixel is (0, 0)", "found": bool(det.found),
+           "message": det.message, "window_px": int(det.window_px), "ids": [int(i) for i in ids],
+           "corners_px": np.round(det.corners[ids], 6).tolist(),
+           "sigma_px": [None if not np.isfinite(s) else round(float(s), 6) for s in det.sigma_px[ids]]}
+    write_atomic(Path(ctx["out_dir"]) / item["outputs"][0], (_json.dumps(doc) + "\n").encode())
+    return {"outputs": item["outputs"], "found": bool(det.found), "n_found": len(ids), "message": det.message}
+
+
+@dataclass(frozen=True, slots=True)
+class DetectJob:
+    """What :func:`detect_files` wrote: one JSON file an image (``<stem>.json``) in
+    ``out_dir``, and the batch's summary."""
+
+    written: list[Path]
+    out_dir: Path
+    summary: Any
+
+
+def detect_files(paths: Sequence[str | os.PathLike], target: Target, out_dir: str | os.PathLike, *,
+                 client: Any = None, scheduler: str | None = None, workers: int | None = None,
+                 resume: bool = False, progress: Callable[[str, int, int], None] | None = None,
+                 output_option: str = "out_dir") -> DetectJob:
+    """Detect ``target`` in every image and write each detection as JSON (``<stem>.json``:
+    the image's name and size, the target, found, the detector's message, and the points seen
+    with their ids, pixels and sigma; docs/file_formats.md) for users with their own solver.
+    A batch job on Dask (:func:`camkit.batch.run_batch`): the target is sent to the workers
+    once; each image is read inside its task; outputs are atomic; ``resume`` skips images
+    already done."""
+    from camkit.batch import run_batch
+
+    if not isinstance(target, Target):
+        raise ParameterError(f"target: expected a camkit target (e.g. a Checkerboard), got {type(target).__name__}")
+    images = [Path(p) for p in paths]
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the detections")
+    targets = [out / (p.stem + ".json") for p in images]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    items = [{"key": p.name, "input": str(p), "outputs": [t.name]} for p, t in zip(images, targets, strict=True)]
+    ctx = {"target": target, "target_dict": target.to_dict(), "out_dir": str(out)}
+    summary = run_batch(_detect_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
+                        resume=resume, progress=progress, stage="detect")
+    return DetectJob([t for t in targets if t.is_file()], out, summary)
+
+
+def _simulate_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
+    """One batch task: plan, render and write view ``item["index"]`` with its own random state
+    (from the seed and the index: the same bytes whatever the number of workers)."""
+    import numpy as np
+
+    from camkit.io import write_image
+    from camkit.render.dataset import plan_views, to_file_image, view_record
+    from camkit.render.effects import render_view
+
+    k = item["index"]
+    rng = np.random.default_rng([ctx["seed"], k])
+    pose = plan_views(ctx["camera"], ctx["board"], 1, rng)[0]
+    img, truth = render_view(ctx["camera"], pose, ctx["board"], ctx["effects"], rng=rng)
+    name = item["outputs"][0]
+    write_image(Path(ctx["out_dir"]) / name, to_file_image(img, ctx["scale"], ctx["bit_depth"]),
+                quality=ctx["quality"])
+    return {"outputs": item["outputs"], "truth": view_record(Path(name).name, pose, truth)}
+
+
+@dataclass(frozen=True, slots=True)
+class SimulateJob:
+    """What :func:`simulate_files` wrote: the dataset's folder, its truth files (``truth.json``
+    for one folder; ``dataset.json`` and a ``truth.jsonl`` a shard), and the batch's summary."""
+
+    out_dir: Path
+    truth_files: list[Path]
+    shards: int
+    summary: Any
+
+
+def simulate_files(out_dir: str | os.PathLike, camera: CameraModel, board: Target, views: int, *, seed: int,
+                   effects: Any = None, bit_depth: int = 8, fmt: str = "png", quality: int = 95,
+                   shard_size: int | None = None, client: Any = None, scheduler: str | None = None,
+                   workers: int | None = None, resume: bool = False,
+                   progress: Callable[[str, int, int], None] | None = None) -> SimulateJob:
+    """Render ``views`` views of ``board`` through ``camera`` as a batch job on Dask, each view
+    one task with its own random state (``numpy.random.default_rng([seed, index])``: its pose
+    is planned alone, :func:`camkit.render.plan_views` with one view, and its noise drawn from
+    it), so the same seed gives the same bytes whatever the number of workers.
+
+    Without ``shard_size`` (and for 1 000 views or fewer), one folder: ``view_000.png`` ...
+    and ``truth.json`` (the layout :func:`camkit.render.simulate_dataset` writes). With
+    ``shard_size`` (1 000 by default beyond 1 000 views): ``shard_0000/`` ... each with its
+    images and ``truth.jsonl`` (one view's truth a line), and ``dataset.json`` (the camera, the
+    target, the seed and the shards), so a dataset of any size is written and read back in
+    pieces (:func:`iter_dataset`). ``fmt``: "png" or "jpeg" (``quality`` 1-100)."""
+    import json as _json
+
+    from camkit._atomic import write_atomic
+    from camkit._validate import as_positive_int
+    from camkit.batch import run_batch
+    from camkit.render.dataset import dataset_header, file_scale
+
+    n = as_positive_int(views, "views")
+    if fmt not in ("png", "jpeg"):
+        raise ParameterError(f"fmt: expected 'png' or 'jpeg', got {fmt!r}")
+    if bit_depth not in (8, 16) or (fmt == "jpeg" and bit_depth != 8):
+        raise ParameterError(f"bit_depth: expected 8 or 16 (8 for JPEG), got {bit_depth!r}")
+    if shard_size is None and n > 1000:
+        shard_size = 1000
+    size = None if shard_size is None else as_positive_int(shard_size, "shard_size")
+    ext = "png" if fmt == "png" else "jpg"
+    out = Path(out_dir)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"out_dir: cannot create the folder {out} ({exc.strerror or exc})") from None
+
+    def name(k: int) -> str:
+        # One folder: simulate_dataset's names; shards: six digits, any size sorts by name.
+        return f"view_{k:03d}.{ext}" if size is None else f"shard_{k // size:04d}/view_{k:06d}.{ext}"
+
+    shards = 1 if size is None else (n + size - 1) // size
+    for s in range(shards if size is not None else 0):
+        (out / f"shard_{s:04d}").mkdir(exist_ok=True)
+    scale, sensor_bits = file_scale(effects, bit_depth)
+    items = [{"key": f"view_{k:06d}", "input": None, "index": k, "outputs": [name(k)]} for k in range(n)]
+    ctx = {"camera": camera, "board": board, "effects": effects, "seed": int(seed), "scale": scale,
+           "bit_depth": bit_depth, "quality": int(quality), "out_dir": str(out)}
+    summary = run_batch(_simulate_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
+                        resume=resume, progress=progress, stage="render")
+    header = dataset_header(camera, board, int(seed), bit_depth, sensor_bits, scale, version=1 if size is None
+                            else 2)
+    truth = {k: summary.results[f"view_{k:06d}"].get("truth") for k in range(n)
+             if summary.results.get(f"view_{k:06d}", {}).get("status") == "done"}
+    written = []
+    if size is None:
+        doc = {**header, "views": [truth[k] for k in range(n) if k in truth]}
+        written.append(write_atomic(out / "truth.json", _json.dumps(doc, indent=1).encode()))
+    else:
+        for s in range(shards):
+            lines = "".join(_json.dumps(truth[k]) + "\n" for k in range(s * size, min((s + 1) * size, n)) if k in truth)
+            written.append(write_atomic(out / f"shard_{s:04d}" / "truth.jsonl", lines.encode()))
+        doc = {**header, "views": n, "shard_size": size, "shards": [f"shard_{s:04d}" for s in range(shards)]}
+        written.insert(0, write_atomic(out / "dataset.json", _json.dumps(doc, indent=1).encode()))
+    return SimulateJob(out, written, shards, summary)
+
+
+def iter_dataset(folder: str | os.PathLike):
+    """The views of a simulated dataset, shard by shard (never all in memory): yields
+    ``(image path, truth record)``; a one-folder dataset (``truth.json``) or a sharded one
+    (``dataset.json``). The header (camera, target, seed) is in the folder's JSON file."""
+    import json as _json
+
+    root = Path(folder)
+    if (root / "dataset.json").is_file():
+        head = _json.loads((root / "dataset.json").read_text())
+        for shard in head.get("shards", []):
+            with open(root / shard / "truth.jsonl", encoding="utf-8") as f:
+                for line in f:
+                    rec = _json.loads(line)
+                    yield root / shard / rec["image"], rec
+    elif (root / "truth.json").is_file():
+        for rec in _json.loads((root / "truth.json").read_text())["views"]:
+            yield root / rec["image"], rec
+    else:
+        raise ParameterError(f"folder: {root} holds no simulated dataset (dataset.json or truth.json)")

@@ -108,3 +108,48 @@ def test_a_worker_killed_mid_run_does_not_stop_the_job(client, tmp_path):
     recs = [json.loads(line) for line in (out / "manifest.jsonl").read_text().splitlines()]
     assert sorted(r["key"] for r in recs) == sorted(p.name for p in paths)
     client.wait_for_workers(2, timeout=60)
+
+
+def test_detect_files_writes_what_the_detector_finds(client, shared_data, tmp_path):
+    from camkit.pipeline import detect_files
+    from camkit.target import Checkerboard
+
+    board = Checkerboard(inner_cols=6, inner_rows=4, square=0.03)
+    paths = sorted((shared_data / "real_boards" / "boofcv_sony" / "images").glob("*.jpg"))[:4]
+    job = detect_files(paths, board, tmp_path / "det", client=client)
+    assert job.summary.done == 4 and len(job.written) == 4
+    for p in paths:
+        doc = json.loads((tmp_path / "det" / (p.stem + ".json")).read_text())
+        det = board.detect(read_image(p))
+        assert doc["format"] == "camkit-detection" and doc["found"] == det.found and doc["image"] == p.name
+        assert doc["ids"] == det.ids.tolist()
+        np.testing.assert_allclose(doc["corners_px"], det.pixels, atol=1e-6)
+
+
+def test_simulated_shards_are_the_same_bytes_on_one_or_two_workers(client, tmp_path):
+    from dask.distributed import Client, LocalCluster
+
+    from camkit.pipeline import iter_dataset, simulate_files
+    from camkit.render import default_camera
+    from camkit.target import Checkerboard
+
+    cam = default_camera("brown-conrady")
+    board = Checkerboard(inner_cols=5, inner_rows=4, square=0.04)
+    two = simulate_files(tmp_path / "two", cam, board, 5, seed=7, fmt="jpeg", shard_size=2, client=client)
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                      host="127.0.0.1") as cluster, Client(cluster) as one_client:
+        one = simulate_files(tmp_path / "one", cam, board, 5, seed=7, fmt="jpeg", shard_size=2, client=one_client)
+    assert two.shards == one.shards == 3
+    files = sorted(p.relative_to(tmp_path / "two") for p in (tmp_path / "two").rglob("*")
+                   if p.is_file() and p.name != "manifest.jsonl")
+    assert len([f for f in files if f.suffix == ".jpg"]) == 5
+    for f in files:
+        assert (tmp_path / "two" / f).read_bytes() == (tmp_path / "one" / f).read_bytes(), f
+    views = list(iter_dataset(tmp_path / "two"))
+    assert [p.name for p, _ in views] == [f"view_{k:06d}.jpg" for k in range(5)]
+    # The truth is the image's: the detector finds the board where the truth says.
+    p, rec = views[0]
+    det = board.detect(read_image(p))
+    if det.found:
+        truth = np.array(rec["corners_px"], dtype=float)
+        assert np.nanmedian(np.hypot(*(det.corners - truth).T)) < 0.3

@@ -251,16 +251,11 @@ class _RigProblem:
             img = np.concatenate([b[3] for b in mine])
             grp = np.repeat(np.array([b[1] for b in mine], dtype=np.int64), [len(b[2]) for b in mine])
             self.per_cam.append((obj, img, grp))
-        # Observations are stacked camera by camera, each camera's blocks in order: ``order``
-        # puts them back into the order of ``blocks`` (reject_outliers walks the blocks).
-        starts = {}
-        pos = 0
-        for c in range(len(classes)):
-            for k, b in enumerate(blocks):
-                if b[0] == c:
-                    starts[k] = pos
-                    pos += len(b[2])
-        self.order = np.concatenate([np.arange(starts[k], starts[k] + len(b[2])) for k, b in enumerate(blocks)])
+        # Observations are stacked camera by camera, each camera's blocks in their order: the
+        # blocks must come camera by camera (reject_outliers and the result walk them in order).
+        cams = [b[0] for b in blocks]
+        if cams != sorted(cams):
+            raise ValueError("_RigProblem: blocks must be ordered camera by camera")
 
     def model(self, state: _RigState, c: int) -> CameraModel:
         w, h = self.sizes[c]
@@ -286,8 +281,7 @@ class _RigProblem:
             Jg.append(J)
             Jl.append(pose_jacobian(dp @ Rc, RX))
             grp.append(g)
-        return Linearization(np.concatenate(res)[self.order], np.concatenate(Jg)[self.order],
-                             np.concatenate(Jl)[self.order], np.concatenate(grp)[self.order])
+        return Linearization(np.concatenate(res), np.concatenate(Jg), np.concatenate(Jl), np.concatenate(grp))
 
     def retract(self, state: _RigState, d_global: np.ndarray, d_local: np.ndarray) -> _RigState:
         params = []

@@ -248,13 +248,14 @@ def _cmd_rectify(args: argparse.Namespace) -> int:
     cams = tuple(args.cameras) if args.cameras else (0, 1)
     with _Progress(console) as progress:
         job = rectify_files(rig, left, right, args.output, cameras=cams, mode=args.mode,
-                            interpolation=args.interpolation, progress=progress, output_option="-o")
+                            interpolation=args.interpolation, progress=progress, output_option="-o",
+                            scheduler=args.scheduler, workers=args.workers, resume=args.resume)
     r = job.rectification
     console.print(f"wrote {len(job.written)} rectified pairs to {job.out_dir} and {job.stereo_file}; the rectified "
                   f"cameras: f={r.left.fx:.2f} cx={r.left.cx:.2f} cy={r.left.cy:.2f} ({r.left.width}x"
                   f"{r.left.height}), baseline {abs(float(r.baseline[1 if r.vertical else 0])) * 1000:.2f} mm; valid "
                   f"rectangles (x, y, w, h) {r.valid_left} and {r.valid_right}")
-    return 0
+    return _batch_summary(console, job.summary)
 
 
 def _mode(text: str) -> str | float:
@@ -330,6 +331,22 @@ def _cmd_undistort(args: argparse.Namespace) -> int:
     new = job.new_model
     console.print(f"wrote {len(job.written)} images to {job.out_dir}; the undistorted camera is a pinhole with "
                   f"fx={new.fx:.2f} fy={new.fy:.2f} cx={new.cx:.2f} cy={new.cy:.2f} ({new.width}x{new.height})")
+    return _batch_summary(console, job.summary)
+
+
+def _cmd_detect(args: argparse.Namespace) -> int:
+    from camkit.pipeline import collect_images, detect_files
+
+    console = _console()
+    board = _target_of(args)
+    inputs = collect_images(args.images)
+    console.print(f"camkit detect: {len(inputs.paths)} images, {_describe(board)}")
+    with _Progress(console) as progress:
+        job = detect_files(inputs.paths, board, args.output, scheduler=args.scheduler, workers=args.workers,
+                           resume=args.resume, progress=progress, output_option="-o")
+    found = sum(1 for r in job.summary.results.values() if r.get("found"))
+    console.print(f"the target was found in {found} of {len(inputs.paths)} images; one JSON file an image in "
+                  f"{job.out_dir}")
     return _batch_summary(console, job.summary)
 
 
@@ -491,7 +508,7 @@ def _seconds(text: str) -> float:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from camkit.lens import LateralChromaticAberration
-    from camkit.render import Defocus, Effects, Exposure, Motion, default_camera, simulate_dataset
+    from camkit.render import Defocus, Effects, Exposure, Motion, default_camera
     from camkit.sensor import EMVA1288Sensor
     from camkit.target import Checkerboard
 
@@ -512,12 +529,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     console = _console()
     console.print(f"camkit simulate: {args.views} views of the {_describe(board)} through the built-in "
                   f"{camera.name} camera, seed {args.seed}")
+    from camkit.pipeline import simulate_files
+
     with _Progress(console) as progress:
-        out = simulate_dataset(args.output, camera, board, args.views, seed=args.seed, effects=effects,
-                               bit_depth=args.bit_depth,
-                               progress=lambda done, total: progress("render", done, total))
-    console.print(f"wrote {args.views} images and truth.json to {out}")
-    return 0
+        job = simulate_files(args.output, camera, board, args.views, seed=args.seed, effects=effects,
+                             bit_depth=args.bit_depth, fmt=args.format, quality=args.quality,
+                             shard_size=args.shard_size, scheduler=args.scheduler, workers=args.workers,
+                             resume=args.resume, progress=progress)
+    where = (f"{job.shards} shards of {args.shard_size or 1000} views (dataset.json, and truth.jsonl in each shard)"
+             if job.shards > 1 or args.shard_size else "truth.json")
+    console.print(f"wrote {job.summary.done + job.summary.skipped} images and {where} to {job.out_dir}")
+    return _batch_summary(console, job.summary)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -581,6 +603,7 @@ def build_parser() -> argparse.ArgumentParser:
                       help="valid (no black borders, default), full (every source pixel kept) or a number in [0, 1]")
     rect.add_argument("--interpolation", default="bilinear", choices=("nearest", "bilinear", "bicubic", "lanczos3"))
     rect.add_argument("-o", "--output", required=True, help="output folder (inputs are never overwritten)")
+    _batch_options(rect)
     rect.set_defaults(func=_cmd_rectify)
 
     brd = sub.add_parser("board", help="write a printable checkerboard, ChArUco board or AprilGrid (pdf, svg or "
@@ -615,6 +638,16 @@ def build_parser() -> argparse.ArgumentParser:
     und.add_argument("--interpolation", default="bicubic", choices=("nearest", "bilinear", "bicubic", "lanczos3"))
     _batch_options(und)
     und.set_defaults(func=_cmd_undistort)
+
+    det = sub.add_parser("detect", help="detect a target in images and write the detections as JSON (one file an "
+                                        "image), for your own solver")
+    det.add_argument("images", nargs="+", metavar="IMAGES", help="image files, folders or glob patterns")
+    det.add_argument("--board", type=_board_size, help="a checkerboard's inner corners COLSxROWS, e.g. 9x6")
+    det.add_argument("--square", type=_length_m, help="the checkerboard's square side, e.g. 25mm")
+    det.add_argument("--target", type=_target_spec, metavar="SPEC", help="another target, as for calibrate")
+    det.add_argument("-o", "--output", required=True, help="output folder (one <image stem>.json an image)")
+    _batch_options(det)
+    det.set_defaults(func=_cmd_detect)
 
     lens = sub.add_parser("lens", help="lens calculators: depth of field, field of view, exposure")
     lsub = lens.add_subparsers(dest="lens_command", metavar="CALCULATOR", required=True)
@@ -654,6 +687,12 @@ def build_parser() -> argparse.ArgumentParser:
     sim.add_argument("--f-number", type=float, default=2.0, help="aperture for --defocus (default 2.0)")
     sim.add_argument("--motion", type=float, metavar="M_PER_S", help="camera speed along x during a 10 ms exposure")
     sim.add_argument("--chromatic", action="store_true", help="lateral chromatic aberration")
+    sim.add_argument("--format", default="png", choices=("png", "jpeg"), help="image files (default png)")
+    sim.add_argument("--quality", type=int, default=95, help="JPEG quality 1-100 (default 95)")
+    sim.add_argument("--shard-size", type=int, metavar="N",
+                     help="write the dataset in shards of N views (a folder and a truth.jsonl each; default: one "
+                          "folder up to 1000 views, shards of 1000 beyond)")
+    _batch_options(sim)
     sim.set_defaults(func=_cmd_simulate)
 
     exp_ = sub.add_parser("export", help="write a camera file in another format")

@@ -83,7 +83,7 @@ def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
     return camera.to_dict()
 
 
-def _file_scale(effects: Effects | None, bit_depth: int) -> tuple[float, int | None]:
+def file_scale(effects: Effects | None, bit_depth: int) -> tuple[float, int | None]:
     """(scale, sensor bits): a file sample is ``round(value * scale)``, where value is the
     rendered image (0..1 without a sensor) or the sensor's count (0..2^bits - 1), so that white
     lands at the top of the file's range (255 or 65535), as a viewer expects."""
@@ -94,10 +94,38 @@ def _file_scale(effects: Effects | None, bit_depth: int) -> tuple[float, int | N
     return top / float(sensor.max_dn), int(sensor.bit_depth)
 
 
-def _to_file_image(img: np.ndarray, scale: float, bit_depth: int) -> np.ndarray:
+def to_file_image(img: np.ndarray, scale: float, bit_depth: int) -> np.ndarray:
     dtype = np.uint8 if bit_depth == 8 else np.uint16
     top = np.iinfo(dtype).max
     return np.clip(np.floor(img.astype(np.float64) * scale + 0.5), 0, top).astype(dtype)
+
+
+def view_record(name: str, pose: Pose, truth: Any) -> dict[str, Any]:
+    """A view's entry in a dataset's truth: the image name, ``cam_from_target`` (rotation
+    vector, translation) and every target point's exact pixel (None where not projectable)
+    and visibility."""
+    return {
+        "image": name,
+        "cam_from_target": {"rvec": pose.rvec.tolist(), "t": pose.t.tolist()},
+        "corners_px": [None if not np.isfinite(c).all() else c.tolist() for c in truth.corners_px],
+        "visible": truth.visible.tolist(),
+    }
+
+
+def dataset_header(camera: CameraModel, board: Target, seed: int, bit_depth: int, sensor_bits: int | None,
+                   scale: float, version: int = 1) -> dict[str, Any]:
+    """What a dataset's truth says of the whole dataset (docs/file_formats.md)."""
+    return {
+        "format": "camkit-simulated-dataset",
+        "version": version,
+        "seed": seed,
+        "camera": camera_to_dict(camera),
+        "board": board.to_dict(),
+        "pixel_origin": "centre of the top-left pixel is (0, 0)",
+        "bit_depth": bit_depth,
+        "sensor_bit_depth": sensor_bits,
+        "scale": scale,
+    }
 
 
 def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Target, views: int, *,
@@ -118,7 +146,7 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Tar
     """
     if bit_depth not in (8, 16):
         raise ParameterError(f"bit_depth: expected 8 or 16, got {bit_depth!r}")
-    scale, sensor_bits = _file_scale(effects, bit_depth)
+    scale, sensor_bits = file_scale(effects, bit_depth)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(seed)
@@ -127,27 +155,11 @@ def simulate_dataset(out_dir: str | os.PathLike, camera: CameraModel, board: Tar
     for k, pose in enumerate(poses):
         img, truth = render_view(camera, pose, board, effects, rng=rng)
         name = f"view_{k:03d}.png"
-        write_png(out / name, _to_file_image(img, scale, bit_depth))
-        records.append({
-            "image": name,
-            "cam_from_target": {"rvec": pose.rvec.tolist(), "t": pose.t.tolist()},
-            "corners_px": [None if not np.isfinite(c).all() else c.tolist() for c in truth.corners_px],
-            "visible": truth.visible.tolist(),
-        })
+        write_png(out / name, to_file_image(img, scale, bit_depth))
+        records.append(view_record(name, pose, truth))
         if progress is not None:
             progress(k + 1, len(poses))
-    doc = {
-        "format": "camkit-simulated-dataset",
-        "version": 1,
-        "seed": seed,
-        "camera": camera_to_dict(camera),
-        "board": board.to_dict(),
-        "pixel_origin": "centre of the top-left pixel is (0, 0)",
-        "bit_depth": bit_depth,
-        "sensor_bit_depth": sensor_bits,
-        "scale": scale,
-        "views": records,
-    }
+    doc = {**dataset_header(camera, board, seed, bit_depth, sensor_bits, scale), "views": records}
     write_atomic(out / "truth.json", json.dumps(doc, indent=1).encode())
     return out
 
