@@ -153,3 +153,24 @@ def test_simulated_shards_are_the_same_bytes_on_one_or_two_workers(client, tmp_p
     if det.found:
         truth = np.array(rec["corners_px"], dtype=float)
         assert np.nanmedian(np.hypot(*(det.corners - truth).T)) < 0.3
+
+
+def test_cli_detect_and_sharded_simulate(tmp_path, capsys):
+    """`camkit simulate --shard-size` then `camkit detect` on the shards, each on its own local
+    cluster (the command line's default), with --workers 2."""
+    from camkit.cli.main import main
+
+    assert main(["simulate", "--views", "4", "--seed", "2", "--shard-size", "2", "--format", "jpeg",
+                 "--board", "6x5", "--square", "30mm", "-o", str(tmp_path / "sim"), "--workers", "2"]) == 0
+    assert (tmp_path / "sim" / "dataset.json").is_file()
+    assert sorted(p.name for p in (tmp_path / "sim").glob("shard_*")) == ["shard_0000", "shard_0001"]
+    assert main(["detect", str(tmp_path / "sim" / "shard_*" / "*.jpg"), "--board", "6x5", "--square", "30mm",
+                 "-o", str(tmp_path / "det"), "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "4 done, 0 skipped, 0 failed" in out
+    docs = [json.loads(p.read_text()) for p in sorted((tmp_path / "det").glob("view_*.json"))]
+    assert len(docs) == 4 and sum(d["found"] for d in docs) >= 3
+    # Again with --resume: nothing to do.
+    assert main(["detect", str(tmp_path / "sim" / "shard_*" / "*.jpg"), "--board", "6x5", "--square", "30mm",
+                 "-o", str(tmp_path / "det"), "--workers", "1", "--resume"]) == 0
+    assert "0 done, 4 skipped" in capsys.readouterr().out
