@@ -80,7 +80,12 @@ def undistort(n: int) -> dict[str, float]:
         shutil.rmtree(tmp, ignore_errors=True)
 
 
-def simulate(views: int) -> dict[str, float]:
+def simulate(views: int, one_thread: bool = False) -> dict[str, float]:
+    """Views per second on 1 and 2 workers: the default local cluster (numba's threads =
+    cores / workers, so one worker already renders on every core), or, with ``one_thread``,
+    workers of one numba thread each (a worker per core, as on a cluster's nodes)."""
+    from dask.distributed import Client, LocalCluster
+
     from camkit.pipeline import simulate_files
     from camkit.render import default_camera
     from camkit.target import Checkerboard
@@ -92,7 +97,13 @@ def simulate(views: int) -> dict[str, float]:
     try:
         for workers in (1, 2):
             t0 = time.perf_counter()
-            job = simulate_files(tmp / f"w{workers}", cam, board, views, seed=1, workers=workers)
+            if one_thread:
+                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  host="127.0.0.1", env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
+                        Client(cluster) as client:
+                    job = simulate_files(tmp / f"w{workers}", cam, board, views, seed=1, client=client)
+            else:
+                job = simulate_files(tmp / f"w{workers}", cam, board, views, seed=1, workers=workers)
             res[f"camkit {workers} workers"] = views / (time.perf_counter() - t0)
             assert job.summary.done == views
     finally:
@@ -117,9 +128,12 @@ def memory(counts: tuple[int, ...] = (20, 2000)) -> dict[int, float]:
         for n in counts:
             with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
                               host="127.0.0.1") as cluster, Client(cluster) as client:
+                before = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
                 undistort_files(paths[:n], cam, tmp / f"out{n}", client=client)
                 peaks = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
             out[n] = max(peaks.values()) / 1024.0  # kB -> MB (Linux)
+            print(f"  {n} inputs: workers' peak RSS {sorted(v / 1024 for v in before.values())} MB before the job, "
+                  f"{sorted(v / 1024 for v in peaks.values())} MB after")
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
@@ -155,6 +169,9 @@ def main() -> None:
     ap.add_argument("--images", type=int, default=200)
     ap.add_argument("--views", type=int, default=1000)
     ap.add_argument("--skip-memory", action="store_true")
+    ap.add_argument("--skip-overhead", action="store_true")
+    ap.add_argument("--one-thread", action="store_true",
+                    help="simulate on workers of one numba thread each (scaling by workers, one core each)")
     a = ap.parse_args()
     if a.images:
         r = undistort(a.images)
@@ -162,17 +179,20 @@ def main() -> None:
         print(f"  camkit 2 workers / OpenCV loop: {r['camkit 2 workers'] / r['opencv loop']:.2f} (asked >= 1.5); "
               f"2 workers / 1 worker: {r['camkit 2 workers'] / r['camkit 1 workers']:.2f} (asked >= 1.7)")
     if a.views:
-        s = simulate(a.views)
-        print(f"simulate {a.views} views 1280x960, views/s: " + ", ".join(f"{k} {v:.3f}" for k, v in s.items()))
+        s = simulate(a.views, a.one_thread)
+        how = "workers of one numba thread" if a.one_thread else "the default local cluster"
+        print(f"simulate {a.views} views 1280x960 ({how}), views/s: "
+              + ", ".join(f"{k} {v:.3f}" for k, v in s.items()))
         print(f"  2 workers / 1 worker: {s['camkit 2 workers'] / s['camkit 1 workers']:.2f} (asked >= 1.7)")
     if not a.skip_memory:
         m = memory()
         sizes = ", ".join(f"{n} inputs {v:.0f} MB" for n, v in m.items())
         print(f"peak worker RSS, undistorting 640x480 images: {sizes} (difference "
               f"{abs(m[2000] - m[20]) / m[20] * 100:.1f} %, asked < 20 %)")
-    per, over = overhead()
-    print(f"per-task time of near-empty tasks: {per:.2f} ms wall a task on 2 workers, of which overhead "
-          f"{over:.2f} ms")
+    if not a.skip_overhead:
+        per, over = overhead()
+        print(f"per-task time of near-empty tasks: {per:.2f} ms wall a task on 2 workers, of which overhead "
+              f"{over:.2f} ms")
 
 
 if __name__ == "__main__":
