@@ -28,13 +28,14 @@ import hashlib
 import json
 import os
 import time
+import uuid
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from camkit._atomic import write_atomic
-from camkit.errors import CamkitError, ParameterError
+from camkit.errors import CamkitError, EstimationError, ParameterError
 
 __all__ = ["BatchSummary", "connect", "file_sha256", "run_batch"]
 
@@ -171,11 +172,26 @@ def _remove_temporaries(out_dir: Path, outputs: Sequence[str]) -> None:
                 tmp.unlink(missing_ok=True)
 
 
+def _until(ac: Any, stage: str, timeout: float | None, count: Callable[[], tuple[int, int]]) -> Any:
+    """The completed futures of ``ac``; its timeout (the whole job's) as an EstimationError
+    saying how far the job got."""
+    it = iter(ac)
+    while True:
+        try:
+            yield next(it)
+        except StopIteration:
+            return
+        except TimeoutError:
+            done, total = count()
+            raise EstimationError(f"timeout: the {stage} job ran past {timeout:g} s with {done} of {total} inputs "
+                                  "done; their outputs are kept (run again with resume to go on)") from None
+
+
 def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequence[dict[str, Any]], context: Any,
               out_dir: str | os.PathLike, *, client: Any = None, scheduler: str | None = None,
               workers: int | None = None, resume: bool = False,
               progress: Callable[[str, int, int], None] | None = None, stage: str = "batch",
-              in_flight_per_worker: int = 2) -> BatchSummary:
+              in_flight_per_worker: int = 2, timeout: float | None = None) -> BatchSummary:
     """Run ``func(item, context)`` for every item on Dask, one task an item.
 
     Parameters
@@ -190,13 +206,16 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
         and whatever ``func`` needs; ``outputs`` (names relative to ``out_dir``) lets ``resume``
         and the clean-up know them before the task runs.
     context : object
-        What every task needs; scattered to the workers once (broadcast), not sent with each
-        task.
+        What every task needs; sent to every worker once (``Client.scatter`` with broadcast),
+        not with each task.
     out_dir : folder of the outputs and the manifest
     client, scheduler, workers : where to run (:func:`connect`)
     resume : skip items the manifest records as done with the same input and present outputs
     progress : ``progress(stage, done, total)`` after each item
     in_flight_per_worker : tasks submitted ahead per worker (bounds memory)
+    timeout : seconds the whole job may take (None: no limit); past it the job stops with an
+        EstimationError saying how many inputs were done (their outputs and manifest records
+        are kept; ``resume`` goes on from there)
 
     Returns
     -------
@@ -219,28 +238,45 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
     n_workers = 0
     try:
         n_workers = max(len(cl.scheduler_info().get("workers", {})), 1)
-        ctx = cl.scatter(context, broadcast=True, hash=False)
+        # Sent once to every worker. In a list: Client.scatter sends a dict's values under the
+        # dict's own keys ("model", "out_dir"...), which the next job would reuse while this
+        # one's are being released (its tasks then fail with "lost dependencies").
+        ctx = cl.scatter([context], broadcast=True, hash=False)[0]
         limit = max(in_flight_per_worker * n_workers, 1)
+        job = uuid.uuid4().hex[:12]  # task keys unique to this job: never an earlier job's task
+        submitted = []
+
+        def submit(it: dict[str, Any]) -> Any:
+            fut = cl.submit(_call, func, it, ctx, key=f"camkit-{stage}-{job}-{it['key']}", pure=False)
+            submitted.append(fut)
+            return fut
+
         pending = iter(todo)
-        ac = as_completed()
+        ac = as_completed(timeout=timeout)
         for it in pending:
-            ac.add(cl.submit(_call, func, it, ctx, key=f"camkit-{stage}-{it['key']}-{id(ctx)}", pure=False))
+            ac.add(submit(it))
             if ac.count() >= limit:
                 break
-        done_n = 0
-        with open(manifest, "a", encoding="utf-8") as log:
-            for fut in ac:
-                rec = fut.result()
-                fut.release()
-                records[rec["key"]] = rec
-                log.write(json.dumps(rec) + "\n")
-                log.flush()
-                done_n += 1
-                if progress is not None:
-                    progress(stage, done_n + skipped, len(items))
-                nxt = next(pending, None)
-                if nxt is not None:
-                    ac.add(cl.submit(_call, func, nxt, ctx, key=f"camkit-{stage}-{nxt['key']}-{id(ctx)}", pure=False))
+        tally = {"done": 0}
+        try:
+            with open(manifest, "a", encoding="utf-8") as log:
+                for fut in _until(ac, stage, timeout, lambda: (tally["done"], len(todo))):
+                    rec = fut.result()
+                    fut.release()
+                    records[rec["key"]] = rec
+                    log.write(json.dumps(rec) + "\n")
+                    log.flush()
+                    tally["done"] += 1
+                    if progress is not None:
+                        progress(stage, tally["done"] + skipped, len(items))
+                    nxt = next(pending, None)
+                    if nxt is not None:
+                        ac.add(submit(nxt))
+        except BaseException:
+            # A timeout or an interrupt: the tasks still queued or running are cancelled; what
+            # finished is in the manifest for resume.
+            cl.cancel([f for f in submitted if not f.done()])
+            raise
     finally:
         if cluster is not None:
             cl.close()

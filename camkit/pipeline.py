@@ -248,11 +248,12 @@ def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_
                     alpha: float = 0.0, interpolation: str = "bicubic",
                     progress: Callable[[str, int, int], None] | None = None,
                     output_option: str = "out_dir", client: Any = None, scheduler: str | None = None,
-                    workers: int | None = None, resume: bool = False) -> UndistortJob:
+                    workers: int | None = None, resume: bool = False, timeout: float | None = None) -> UndistortJob:
     """Undistort image files into ``out_dir`` as PNG (same stem), seen through the pinhole
     :func:`camkit.resample.optimal_pinhole` (``alpha``: 0 keeps only valid pixels, 1 keeps
     every source pixel) of ``model``: a batch job on Dask (:func:`camkit.batch.run_batch`;
-    ``client``, ``scheduler``, ``workers`` say where, ``resume`` skips inputs already done).
+    ``client``, ``scheduler``, ``workers`` say where, ``resume`` skips inputs already done,
+    ``timeout`` bounds the job's seconds).
 
     Everything is checked before the first file is written: the folder is created (or
     refused), no two inputs share a stem, no output is one of the inputs. Each file is written
@@ -291,7 +292,7 @@ def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_
     ctx = {"model": model, "out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex,
            "build": _undistort_map, "args": (model, new)}
     summary = run_batch(_undistort_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
-                        resume=resume, progress=progress, stage="undistort")
+                        resume=resume, progress=progress, stage="undistort", timeout=timeout)
     return UndistortJob([t for t in targets if t.is_file()], out, new, summary)
 
 
@@ -459,7 +460,7 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
                   mode: str | float = "valid", interpolation: str = "bilinear",
                   progress: Callable[[str, int, int], None] | None = None,
                   output_option: str = "out_dir", client: Any = None, scheduler: str | None = None,
-                  workers: int | None = None, resume: bool = False) -> RectifyJob:
+                  workers: int | None = None, resume: bool = False, timeout: float | None = None) -> RectifyJob:
     """Rectify stereo pairs (the k-th left file with the k-th right one) of cameras
     ``cameras`` of ``rig`` (a CameraRig or RigResult) into ``out_dir/<left name>/`` and
     ``out_dir/<right name>/`` as PNG (same stems), with ``out_dir/stereo.yml`` (OpenCV's
@@ -508,7 +509,7 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
     ctx = {"out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex, "build": _rectify_maps,
            "args": (rect,), "build_args": (rect,)}
     summary = run_batch(_rectify_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
-                        resume=resume, progress=progress, stage="rectify")
+                        resume=resume, progress=progress, stage="rectify", timeout=timeout)
     written = [(out / n[0], out / n[1]) for n in names if (out / n[0]).is_file() and (out / n[1]).is_file()]
     return RectifyJob(written, out, rect, stereo_file, summary)
 
@@ -552,7 +553,7 @@ class DetectJob:
 def detect_files(paths: Sequence[str | os.PathLike], target: Target, out_dir: str | os.PathLike, *,
                  client: Any = None, scheduler: str | None = None, workers: int | None = None,
                  resume: bool = False, progress: Callable[[str, int, int], None] | None = None,
-                 output_option: str = "out_dir") -> DetectJob:
+                 output_option: str = "out_dir", timeout: float | None = None) -> DetectJob:
     """Detect ``target`` in every image and write each detection as JSON (``<stem>.json``:
     the image's name and size, the target, found, the detector's message, and the points seen
     with their ids, pixels and sigma; docs/file_formats.md) for users with their own solver.
@@ -577,7 +578,7 @@ def detect_files(paths: Sequence[str | os.PathLike], target: Target, out_dir: st
     items = [{"key": p.name, "input": str(p), "outputs": [t.name]} for p, t in zip(images, targets, strict=True)]
     ctx = {"target": target, "target_dict": target.to_dict(), "out_dir": str(out)}
     summary = run_batch(_detect_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
-                        resume=resume, progress=progress, stage="detect")
+                        resume=resume, progress=progress, stage="detect", timeout=timeout)
     return DetectJob([t for t in targets if t.is_file()], out, summary)
 
 
@@ -615,7 +616,8 @@ def simulate_files(out_dir: str | os.PathLike, camera: CameraModel, board: Targe
                    effects: Any = None, bit_depth: int = 8, fmt: str = "png", quality: int = 95,
                    shard_size: int | None = None, client: Any = None, scheduler: str | None = None,
                    workers: int | None = None, resume: bool = False,
-                   progress: Callable[[str, int, int], None] | None = None) -> SimulateJob:
+                   progress: Callable[[str, int, int], None] | None = None,
+                   timeout: float | None = None) -> SimulateJob:
     """Render ``views`` views of ``board`` through ``camera`` as a batch job on Dask, each view
     one task with its own random state (``numpy.random.default_rng([seed, index])``: its pose
     is planned alone, :func:`camkit.render.plan_views` with one view, and its noise drawn from
@@ -661,7 +663,7 @@ def simulate_files(out_dir: str | os.PathLike, camera: CameraModel, board: Targe
     ctx = {"camera": camera, "board": board, "effects": effects, "seed": int(seed), "scale": scale,
            "bit_depth": bit_depth, "quality": int(quality), "out_dir": str(out)}
     summary = run_batch(_simulate_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
-                        resume=resume, progress=progress, stage="render")
+                        resume=resume, progress=progress, stage="render", timeout=timeout)
     header = dataset_header(camera, board, int(seed), bit_depth, sensor_bits, scale, version=1 if size is None
                             else 2)
     truth = {k: summary.results[f"view_{k:06d}"].get("truth") for k in range(n)

@@ -49,7 +49,7 @@ def test_outputs_manifest_and_a_corrupt_input(client, images, tmp_path):
     bad = images[0].parent / "corrupt.png"
     bad.write_bytes(b"\x89PNG\r\n\x1a\n" + b"\x00" * 50)
     out = tmp_path / "out"
-    job = undistort_files([*images, bad], CAM, out, client=client)
+    job = undistort_files([*images, bad], CAM, out, client=client, timeout=120)
     s = job.summary
     assert s.done == 12 and s.skipped == 0 and [f for f, _ in s.failed] == [str(bad)]
     assert "corrupt.png" in s.failed[0][1] or "not" in s.failed[0][1]
@@ -66,13 +66,13 @@ def test_outputs_manifest_and_a_corrupt_input(client, images, tmp_path):
 
 def test_resume_skips_what_is_complete(client, images, tmp_path):
     out = tmp_path / "out"
-    undistort_files(images, CAM, out, client=client)
-    again = undistort_files(images, CAM, out, client=client, resume=True).summary
+    undistort_files(images, CAM, out, client=client, timeout=120)
+    again = undistort_files(images, CAM, out, client=client, resume=True, timeout=120).summary
     assert again.done == 0 and again.skipped == 12
     # A changed input and a deleted output are done again; the rest is skipped.
     write_png(images[1], np.zeros((240, 320), np.uint8))
     (out / "img05.png").unlink()
-    third = undistort_files(images, CAM, out, client=client, resume=True).summary
+    third = undistort_files(images, CAM, out, client=client, resume=True, timeout=120).summary
     assert third.done == 2 and third.skipped == 10
     assert read_image(out / "img01.png").max() == 0
 
@@ -100,7 +100,7 @@ def test_a_worker_killed_mid_run_does_not_stop_the_job(client, tmp_path):
             killed.append(victim)
             threading.Thread(target=os.kill, args=(victim, signal.SIGKILL)).start()
 
-    job = undistort_files(paths, big, out, client=client, progress=progress, interpolation="bilinear")
+    job = undistort_files(paths, big, out, client=client, progress=progress, interpolation="bilinear", timeout=180)
     assert killed
     assert job.summary.done == 24 and not job.summary.failed
     names = sorted(p.name for p in out.iterdir())
@@ -116,7 +116,7 @@ def test_detect_files_writes_what_the_detector_finds(client, shared_data, tmp_pa
 
     board = Checkerboard(inner_cols=6, inner_rows=4, square=0.03)
     paths = sorted((shared_data / "real_boards" / "boofcv_sony" / "images").glob("*.jpg"))[:4]
-    job = detect_files(paths, board, tmp_path / "det", client=client)
+    job = detect_files(paths, board, tmp_path / "det", client=client, timeout=120)
     assert job.summary.done == 4 and len(job.written) == 4
     for p in paths:
         doc = json.loads((tmp_path / "det" / (p.stem + ".json")).read_text())
@@ -174,3 +174,13 @@ def test_cli_detect_and_sharded_simulate(tmp_path, capsys):
     assert main(["detect", str(tmp_path / "sim" / "shard_*" / "*.jpg"), "--board", "6x5", "--square", "30mm",
                  "-o", str(tmp_path / "det"), "--workers", "1", "--resume"]) == 0
     assert "0 done, 4 skipped" in capsys.readouterr().out
+
+
+def test_a_job_past_its_timeout_stops_with_what_it_did(client, images, tmp_path):
+    from camkit.errors import EstimationError
+
+    with pytest.raises(EstimationError, match=r"timeout: the undistort job ran past 0.001 s with \d+ of 12"):
+        undistort_files(images, CAM, tmp_path / "out", client=client, timeout=0.001)
+    # What it did is kept; resume finishes the rest.
+    rest = undistort_files(images, CAM, tmp_path / "out", client=client, resume=True, timeout=120).summary
+    assert rest.done + rest.skipped == 12
