@@ -106,7 +106,8 @@ def connect(client: Any = None, *, scheduler: str | None = None, workers: int | 
     address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if address:
         try:
-            return Client(address, timeout=30), None
+            # Dask's connect timeout (distributed.comm.timeouts.connect, 30 s by default).
+            return Client(address), None
         except OSError as exc:
             raise ParameterError(f"scheduler: cannot reach the Dask scheduler at {address} ({exc})") from None
     cores = os.cpu_count() or 1

@@ -184,3 +184,28 @@ def test_a_job_past_its_timeout_stops_with_what_it_did(client, images, tmp_path)
     # What it did is kept; resume finishes the rest.
     rest = undistort_files(images, CAM, tmp_path / "out", client=client, resume=True, timeout=120).summary
     assert rest.done + rest.skipped == 12
+
+
+def test_an_existing_cluster_by_address_and_by_variable(client, images, tmp_path, capsys, monkeypatch):
+    """--scheduler tcp://... and DASK_SCHEDULER_ADDRESS: the job runs on that cluster's two
+    workers (no local cluster is started)."""
+    from camkit.cli.main import main
+
+    address = client.scheduler.address
+    save = tmp_path / "cam.json"
+    from camkit.io import save_camera
+
+    save_camera(save, CAM)
+    assert main(["undistort", str(save), str(images[0].parent), "-o", str(tmp_path / "a"), "--scheduler",
+                 address]) == 0
+    assert "12 done, 0 skipped, 0 failed" in capsys.readouterr().out
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", address)
+    assert main(["undistort", str(save), str(images[0].parent), "-o", str(tmp_path / "b")]) == 0
+    out = capsys.readouterr().out
+    assert "12 done" in out and "on 2 workers" in out
+    import dask
+
+    monkeypatch.setenv("DASK_SCHEDULER_ADDRESS", "tcp://127.0.0.1:9")
+    with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
+        assert main(["undistort", str(save), str(images[0].parent), "-o", str(tmp_path / "c")]) != 0
+    assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in capsys.readouterr().err
