@@ -210,6 +210,29 @@ class UndistortJob:
     summary: Any = None
 
 
+def _one_output_each(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike, suffix: str, what: str,
+                     output_option: str) -> tuple[list[Path], Path, list[Path]]:
+    """The inputs, the output folder (created) and each input's output ``<stem><suffix>`` in
+    it, checked before any work: the folder is not a file, no two inputs share a stem, no
+    output is an input."""
+    images = [Path(p) for p in paths]
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for {what}")
+    inputs = {p.resolve() for p in images}
+    targets = [out / (p.stem + suffix) for p in images]
+    if len({t.resolve() for t in targets}) != len(targets):
+        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
+    for t in targets:
+        if t.resolve() in inputs:
+            raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    return images, out, targets
+
+
 #: Per worker process: maps built from a recipe scattered to it, by the recipe's token (a
 #: worker builds each map once, not once a task).
 _WORKER_MAPS: dict[str, Any] = {}
@@ -269,25 +292,11 @@ def undistort_files(paths: Sequence[str | os.PathLike], model: CameraModel, out_
 
     if not isinstance(model, CameraModel):
         raise ParameterError(f"model: expected a camkit camera model, got {type(model).__name__}")
-    images = [Path(p) for p in paths]
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the undistorted images")
-    inputs = {p.resolve() for p in images}
-    targets = [out / (p.stem + ".png") for p in images]
-    if len({t.resolve() for t in targets}) != len(targets):
-        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
-    for t in targets:
-        if t.resolve() in inputs:
-            raise ParameterError(f"{output_option}: {t} is one of the input images; camkit never overwrites an input")
-    new = optimal_pinhole(model, alpha)
     from camkit.resample.kernels import interpolation_code
 
     interpolation_code(interpolation)  # a misspelt name fails here, before any work
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    new = optimal_pinhole(model, alpha)
+    images, out, targets = _one_output_each(paths, out_dir, ".png", "the undistorted images", output_option)
     items = [{"key": p.name, "input": str(p), "outputs": [t.name]} for p, t in zip(images, targets, strict=True)]
     ctx = {"model": model, "out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex,
            "build": _undistort_map, "args": (model, new)}
@@ -564,17 +573,7 @@ def detect_files(paths: Sequence[str | os.PathLike], target: Target, out_dir: st
 
     if not isinstance(target, Target):
         raise ParameterError(f"target: expected a camkit target (e.g. a Checkerboard), got {type(target).__name__}")
-    images = [Path(p) for p in paths]
-    out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise ParameterError(f"{output_option}: {out} is a file; expected a folder for the detections")
-    targets = [out / (p.stem + ".json") for p in images]
-    if len({t.resolve() for t in targets}) != len(targets):
-        raise ParameterError("IMAGES: two inputs have the same name; their outputs would overwrite each other")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
+    images, out, targets = _one_output_each(paths, out_dir, ".json", "the detections", output_option)
     items = [{"key": p.name, "input": str(p), "outputs": [t.name]} for p, t in zip(images, targets, strict=True)]
     ctx = {"target": target, "target_dict": target.to_dict(), "out_dir": str(out)}
     summary = run_batch(_detect_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
