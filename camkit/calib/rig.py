@@ -523,8 +523,9 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     Rs, ts = np.empty((len(groups), 3, 3)), np.empty((len(groups), 3))
     for k, t in enumerate(groups):
         c = next(c for c in range(n_c) if t in cam_poses[c])
-        rig = cam_from_ref[c].inverse() @ cam_poses[c][t]
-        Rs[k], ts[k] = rig.R, rig.t
+        # rig_from_target = cam_from_ref^-1 @ cam_from_target: R_c^T R, R_c^T (t - t_c).
+        Rc, tc, p = cam_from_ref[c].R, cam_from_ref[c].t, cam_poses[c][t]
+        Rs[k], ts[k] = Rc.T @ p.R, Rc.T @ (p.t - tc)
 
     free_idx = []
     for c in range(n_c):
@@ -575,11 +576,13 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
     sq_c, n_c_used = np.zeros(n_c), np.zeros(n_c)
     sq_t, n_t_used = np.zeros(n_t), np.zeros(n_t)
     per_cam: list[dict[int, np.ndarray]] = [{} for _ in range(n_c)]
+    block_rms: dict[tuple[int, int], float] = {}
     for (c, t), m, r in zip(keys, masks, split, strict=True):
         full = np.full((len(m), 2), np.nan)
         full[m] = r
         per_cam[c][t] = full
         s = float((r**2).sum())
+        block_rms[(c, t)] = float(np.sqrt(s / len(r))) if len(r) else float("nan")
         sq_c[c] += s
         n_c_used[c] += len(r)
         sq_t[t] += s
@@ -597,8 +600,7 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
         idx = list(range(o, o + len(problem.free[c])))
         fnames = tuple(problem.classes[c].param_names[i] for i in problem.free[c])
         ccov = cov[np.ix_(idx, idx)]
-        with np.errstate(invalid="ignore"):
-            view_rms = np.array([np.sqrt(np.nanmean((r**2).sum(axis=1))) for r in resid])
+        view_rms = np.array([block_rms[(c, t)] for t in inst])
         cameras.append(CalibrationResult(
             model=model, poses=poses, rms_px=float(np.sqrt((R**2).sum(axis=1).mean())),
             std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms, residuals=resid,
@@ -612,7 +614,7 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
             converged=report.converged, iterations=iterations, cost=report.cost, message=report.message))
     rot_sig = np.zeros((n_c, 3))
     tr_sig = np.zeros((n_c, 3))
-    base = np.array([float(np.linalg.norm(cam_from_rig[c].inverse().t)) for c in range(n_c)])
+    base = np.linalg.norm(state.tc, axis=1)  # |-R^T t| = |t|: the centre's distance from the reference's
     base_sig = np.zeros(n_c)
     for c in range(n_c):
         o = problem.pose_off[c]
