@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from camkit._atomic import write_atomic
-from camkit.errors import CamkitError, EstimationError, ParameterError
+from camkit.errors import EstimationError, ParameterError
 
 __all__ = ["BatchSummary", "connect", "file_sha256", "run_batch"]
 
@@ -150,7 +150,7 @@ def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: An
     try:
         rec = dict(func(item, context))
         rec.setdefault("status", "done")
-    except (CamkitError, OSError, ValueError) as exc:
+    except Exception as exc:  # one input's failure, whatever it is, is that input's: recorded, not fatal
         rec = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     rec["key"] = item["key"]
     rec["seconds"] = time.perf_counter() - t0
@@ -200,8 +200,8 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
     func : callable
         A module-level function (workers import it): reads its input, writes its outputs into
         ``out_dir`` atomically, returns a JSON-ready record with ``outputs`` (names relative to
-        ``out_dir``). An exception (camkit's, OSError, ValueError) marks the item failed, with
-        the reason.
+        ``out_dir``). Any exception marks the item failed, with its type and message (a
+        100 000-image job does not stop for one bad input).
     items : list of dict
         Each with a unique ``key`` (str) and ``input`` (a path, or None for generated items),
         and whatever ``func`` needs; ``outputs`` (names relative to ``out_dir``) lets ``resume``
@@ -235,6 +235,9 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
     skipped = len(items) - len(todo)
     records: dict[str, dict[str, Any]] = {k: previous[k] for k in keys if k in previous and resume}
     t0 = time.perf_counter()
+    if not todo:  # everything complete already: no cluster to start
+        return BatchSummary(done=0, skipped=skipped, failed=[], seconds=time.perf_counter() - t0, results=records,
+                            manifest=manifest, workers=0)
     cl, cluster = connect(client, scheduler=scheduler, workers=workers)
     n_workers = 0
     try:
