@@ -98,8 +98,9 @@ def simulate(views: int, one_thread: bool = False) -> dict[str, float]:
         for workers in (1, 2):
             t0 = time.perf_counter()
             if one_thread:
-                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                                  host="127.0.0.1", env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
+                with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                                  dashboard_address="127.0.0.1:0", host="127.0.0.1",
+                                  env={"NUMBA_NUM_THREADS": "1"}) as cluster, \
                         Client(cluster) as client:
                     job = simulate_files(tmp / f"w{workers}", cam, board, views, seed=1, client=client)
             else:
@@ -126,7 +127,7 @@ def memory(counts: tuple[int, ...] = (20, 2000)) -> dict[int, float]:
         (tmp / "in").mkdir()
         paths = _write_inputs(tmp / "in", max(counts), 480, 640)
         for n in counts:
-            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+            with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                               host="127.0.0.1") as cluster, Client(cluster) as client:
                 before = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
                 undistort_files(paths[:n], cam, tmp / f"out{n}", client=client)
@@ -150,7 +151,7 @@ def overhead(n: int = 400) -> tuple[float, float]:
     try:
         (tmp / "in").mkdir()
         paths = [write_png(tmp / "in" / f"b{k:04d}.png", np.full((48, 64), 128, np.uint8)) for k in range(n)]
-        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+        with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                           host="127.0.0.1") as cluster, Client(cluster) as client:
             detect_files(paths[:20], Checkerboard(inner_cols=5, inner_rows=4, square=0.03), tmp / "warm",
                          client=client)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import logging
 import os
 import time
 import uuid
@@ -88,26 +89,28 @@ def file_sha256(path: str | os.PathLike) -> str:
     return h.hexdigest()
 
 
-def connect(client: Any = None, *, scheduler: str | None = None, workers: int | None = None) -> tuple[Any, Any]:
-    """A Dask client, and the local cluster made for it (None when the caller's client or a
-    remote scheduler is used; the caller closes what is returned).
+def connect(client: Any = None, *, scheduler: str | None = None, workers: int | None = None) -> tuple[Any, list]:
+    """A Dask client, and what was opened for it and is the caller's to close when the job
+    ends (``for x in opened: x.close()``): nothing for the caller's client, the client for a
+    scheduler's address, the client and the local cluster otherwise.
 
     ``client``: used as it is. ``scheduler`` (or ``DASK_SCHEDULER_ADDRESS``): a
     dask.distributed scheduler's address, ``tcp://host:port``. Else a local cluster of
     ``workers`` processes (the machine's cores by default), one thread each for tasks, numba
-    limited to ``cores // workers`` threads per worker, the dashboard off, on the loopback
-    interface only."""
+    limited to ``cores // workers`` threads per worker, on the loopback interface only."""
     from dask.distributed import Client, LocalCluster
 
     if client is not None:
         if not isinstance(client, Client):
             raise ParameterError(f"client: expected a dask.distributed.Client, got {type(client).__name__}")
-        return client, None
+        return client, []
     address = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if address:
+        _reachable(address)
         try:
             # Dask's connect timeout (distributed.comm.timeouts.connect, 30 s by default).
-            return Client(address), None
+            c = Client(address)
+            return c, [c]
         except OSError as exc:
             raise ParameterError(f"scheduler: cannot reach the Dask scheduler at {address} ({exc})") from None
     cores = os.cpu_count() or 1
@@ -115,9 +118,35 @@ def connect(client: Any = None, *, scheduler: str | None = None, workers: int | 
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ParameterError(f"workers: expected a positive number of worker processes, got {workers!r}")
     threads = str(max(cores // n, 1))
-    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                           host="127.0.0.1", env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads})
-    return Client(cluster), cluster
+    # Loopback only; the scheduler's HTTP endpoint on a free port (a fixed one clashes with any
+    # other cluster on the machine); Dask's own log lines only for errors.
+    cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
+                           host="127.0.0.1", silence_logs=logging.ERROR,
+                           env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads})
+    c = Client(cluster)
+    return c, [c, cluster]
+
+
+def _reachable(address: str) -> None:
+    """For a ``tcp://host:port`` address, a plain connection first: a scheduler that is not
+    there is reported at once, without a Dask client left retrying in the background."""
+    import socket
+
+    import dask
+
+    if not address.startswith("tcp://"):
+        return
+    host, _, port = address[len("tcp://"):].rpartition(":")
+    try:
+        p = int(port)
+    except ValueError:
+        raise ParameterError(f"scheduler: expected tcp://HOST:PORT, got {address!r}") from None
+    seconds = dask.utils.parse_timedelta(dask.config.get("distributed.comm.timeouts.connect"), default="s")
+    try:
+        socket.create_connection((host.strip("[]"), p), timeout=seconds).close()
+    except OSError as exc:
+        raise ParameterError(f"scheduler: cannot reach the Dask scheduler at {address} "
+                             f"({exc.strerror or exc})") from None
 
 
 def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
@@ -238,7 +267,7 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
     if not todo:  # everything complete already: no cluster to start
         return BatchSummary(done=0, skipped=skipped, failed=[], seconds=time.perf_counter() - t0, results=records,
                             manifest=manifest, workers=0)
-    cl, cluster = connect(client, scheduler=scheduler, workers=workers)
+    cl, opened = connect(client, scheduler=scheduler, workers=workers)
     n_workers = 0
     try:
         n_workers = max(len(cl.scheduler_info().get("workers", {})), 1)
@@ -282,9 +311,8 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
             cl.cancel([f for f in submitted if not f.done()])
             raise
     finally:
-        if cluster is not None:
-            cl.close()
-            cluster.close()
+        for x in opened:
+            x.close()
     _remove_temporaries(out, [o for it in items for o in it.get("outputs", [])]
                         + [o for r in records.values() for o in r.get("outputs", [])])
     # The manifest, rewritten whole and atomically: one record per input, this run's or the

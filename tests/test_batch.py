@@ -26,7 +26,7 @@ def client():
     thread: two cores in CI)."""
     from dask.distributed import Client, LocalCluster
 
-    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    cluster = LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                            host="127.0.0.1", env={"NUMBA_NUM_THREADS": "1"})
     c = Client(cluster, timeout=60)
     yield c
@@ -136,7 +136,7 @@ def test_simulated_shards_are_the_same_bytes_on_one_or_two_workers(client, tmp_p
     cam = default_camera("brown-conrady")
     board = Checkerboard(inner_cols=5, inner_rows=4, square=0.04)
     two = simulate_files(tmp_path / "two", cam, board, 5, seed=7, fmt="jpeg", shard_size=2, client=client)
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                       host="127.0.0.1") as cluster, Client(cluster) as one_client:
         one = simulate_files(tmp_path / "one", cam, board, 5, seed=7, fmt="jpeg", shard_size=2, client=one_client)
     assert two.shards == one.shards == 3
