@@ -209,3 +209,39 @@ def test_an_existing_cluster_by_address_and_by_variable(client, images, tmp_path
     with dask.config.set({"distributed.comm.timeouts.connect": "2s"}):
         assert main(["undistort", str(save), str(images[0].parent), "-o", str(tmp_path / "c")]) != 0
     assert "cannot reach the Dask scheduler at tcp://127.0.0.1:9" in capsys.readouterr().err
+
+
+def test_bad_input_is_refused_before_any_work(tmp_path):
+    """No cluster is started for these: each is refused naming the argument."""
+    from pathlib import Path
+
+    from camkit.batch import connect, run_batch
+    from camkit.errors import ParameterError
+    from camkit.pipeline import detect_files, iter_dataset, pair_images, simulate_files
+    from camkit.target import Checkerboard
+
+    board = Checkerboard(inner_cols=5, inner_rows=4, square=0.03)
+    with pytest.raises(ParameterError, match="unique string key"):
+        run_batch(lambda a, b: {}, [{"key": "a"}, {"key": "a"}], None, tmp_path / "x")
+    with pytest.raises(ParameterError, match="workers"):
+        connect(workers=0)
+    with pytest.raises(ParameterError, match="client"):
+        connect(client="x")
+    with pytest.raises(ParameterError, match="expected tcp://HOST:PORT"):
+        connect(scheduler="tcp://127.0.0.1:notaport")
+    for kwargs, what in (({"fmt": "gif"}, "fmt"), ({"fmt": "jpeg", "bit_depth": 16}, "bit_depth"),
+                         ({"shard_size": 0}, "shard_size")):
+        with pytest.raises(ParameterError, match=what):
+            simulate_files(tmp_path / "s", CAM, board, 2, seed=1, **kwargs)
+    with pytest.raises(ParameterError, match="views"):
+        simulate_files(tmp_path / "s", CAM, board, 0, seed=1)
+    with pytest.raises(ParameterError, match="target"):
+        detect_files([], "board", tmp_path / "d")
+    with pytest.raises(ParameterError, match="not a valid regular expression"):
+        pair_images({"a": [Path("x1.png")], "b": [Path("y1.png")]}, "(")
+    with pytest.raises(ParameterError, match=r"does not match the file name y\.png"):
+        pair_images({"a": [Path("x1.png")], "b": [Path("y.png")]}, r"(\d+)")
+    with pytest.raises(ParameterError, match="different numbers of images"):
+        pair_images({"a": [Path("x1.png")], "b": []})
+    with pytest.raises(ParameterError, match="holds no simulated dataset"):
+        list(iter_dataset(tmp_path / "nothing"))

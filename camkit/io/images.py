@@ -632,8 +632,8 @@ def _encode_png(img: np.ndarray, level: int) -> bytes:
     img = np.ascontiguousarray(img)
     # libpng through imagecodecs (Pillow keeps only 8 bits of 16-bit colour, and is slower).
     # At level 1 (the default) the fast settings OpenCV's imwrite uses by default: the SUB
-    # filter and zlib's run-length strategy (imagecodecs.png_encode's documentation): a 12 MP
-    # photo in about 0.3 s instead of 0.75 s, and smaller.
+    # filter and zlib's run-length strategy (imagecodecs.png_encode's documentation): faster
+    # and smaller than Pillow's encoder (benchmarks/notes.md has the figures).
     fast = {"strategy": 3, "filter": 16} if int(level) == 1 else {}
     return bytes(imagecodecs.png_encode(img, level=int(level), **fast))
 

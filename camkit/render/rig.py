@@ -58,6 +58,8 @@ def simulate_rig(cameras: Sequence[CameraModel], cam_from_rig: Sequence[Pose], t
             raise ParameterError(f"cameras[{k}]: expected a camkit camera model, got {type(c).__name__}")
         if not isinstance(p, Pose):
             raise ParameterError(f"cam_from_rig[{k}]: expected a Pose, got {type(p).__name__}")
+    if not isinstance(target, Target):
+        raise ParameterError(f"target: expected a camkit target (e.g. a Checkerboard), got {type(target).__name__}")
     n = as_positive_int(instants, "instants")
     rng = np.random.default_rng(seed)
     first = plan_views(cams[0], target, n, rng, tilt_deg=tilt_deg, fill=fill)

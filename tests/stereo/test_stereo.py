@@ -169,3 +169,46 @@ def test_bad_input() -> None:
         triangulate(np.zeros((3, 2)), np.zeros((3, 2)), (LEFT, RIGHT, LEFT_FROM_RIGHT), sigma_px=-1)
     with pytest.raises(ParameterError, match="rectification"):
         rectify_maps(None)
+
+
+def test_triangulation_edge_cases() -> None:
+    """Empty input gives empty output; NaN pixels and parallel rays (a point at infinity) give
+    NaN rows, never a number; integer pixels are accepted."""
+    pair = (LEFT, RIGHT, LEFT_FROM_RIGHT)
+    tr = triangulate(np.zeros((0, 2)), np.zeros((0, 2)), pair)
+    assert tr.points.shape == (0, 3) and tr.covariance.shape == (0, 3, 3)
+    tr = triangulate(np.array([[np.nan, np.nan], [600.0, 400.0]]), np.array([[600.0, 400.0], [np.nan, np.nan]]),
+                     pair)
+    assert np.isnan(tr.points).all()
+    with pytest.raises(ParameterError, match="px_left: expected finite values"):
+        triangulate(np.array([[np.nan, 1.0]]), np.array([[600.0, 400.0]]), pair)
+    same = Pose.from_rvec([0, 0, 0], [-0.1, 0, 0])
+    tr = triangulate(np.array([[639.5, 479.5]]), np.array([[639.5, 479.5]]), (LEFT, LEFT, same), sigma_px=0.1)
+    assert np.isnan(tr.points).all() and np.isnan(tr.covariance).all()
+    X = np.array([[0.1, -0.05, 2.0]])
+    pl = np.round(LEFT.project(X)).astype(np.int64)
+    assert np.isfinite(triangulate(pl, np.round(RIGHT.project(RIGHT_FROM_LEFT.apply(X))).astype(int), pair).points).all()
+    with pytest.raises(ShapeError, match="px_left"):
+        triangulate("a", "b", pair)
+    r = rectify(LEFT, RIGHT, LEFT_FROM_RIGHT)
+    assert epipolar_error(np.zeros((0, 2)), np.zeros((0, 2)), r).shape == (0,)
+    with pytest.raises(ShapeError, match="px_left, px_right"):
+        epipolar_error(np.zeros((2, 2)), np.zeros((3, 2)), r)
+    with pytest.raises(ParameterError, match="rectification"):
+        epipolar_error(np.zeros((2, 2)), np.zeros((2, 2)), None)
+    with pytest.raises(ParameterError, match="side"):
+        r.rectify_points(np.zeros((1, 2)), "middle")
+    with pytest.raises(ParameterError, match="size width"):
+        rectify(LEFT, RIGHT, LEFT_FROM_RIGHT, size=(0, 10))
+
+
+def test_simulate_rig_bad_input() -> None:
+    board = Checkerboard(inner_cols=5, inner_rows=4, square=0.03)
+    with pytest.raises(ParameterError, match="instants"):
+        simulate_rig([LEFT], [Pose.identity()], board, 0)
+    with pytest.raises(ParameterError, match="one pose per camera"):
+        simulate_rig([LEFT, RIGHT], [Pose.identity()], board, 1)
+    with pytest.raises(ParameterError, match=r"cameras\[0\]"):
+        simulate_rig(["x"], [Pose.identity()], board, 1)
+    with pytest.raises(ParameterError, match="target"):
+        simulate_rig([LEFT], [Pose.identity()], "board", 1, render=False)
