@@ -193,13 +193,20 @@ def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: An
 
 
 def _remove_temporaries(out_dir: Path, outputs: Sequence[str]) -> None:
-    """Temporary files (``.<name>.*``, camkit's atomic writes) a killed worker left beside the
-    outputs."""
+    """Temporary files (``.<name>.<random>``, camkit's atomic writes) a killed worker left
+    beside the outputs: each folder is listed once, whatever the number of outputs in it."""
+    by_dir: dict[Path, set[str]] = {}
     for o in outputs:
         p = out_dir / o
-        if p.parent.is_dir():
-            for tmp in p.parent.glob(f".{p.name}.*"):
-                tmp.unlink(missing_ok=True)
+        by_dir.setdefault(p.parent, set()).add(p.name)
+    for folder, names in by_dir.items():
+        if not folder.is_dir():
+            continue
+        with os.scandir(folder) as entries:
+            for e in entries:
+                # mkstemp's random suffix has no dot: what lies before the last dot is the name.
+                if e.name.startswith(".") and e.name[1:].rpartition(".")[0] in names and e.is_file():
+                    Path(e.path).unlink(missing_ok=True)
 
 
 def _until(ac: Any, stage: str, timeout: float | None, count: Callable[[], tuple[int, int]]) -> Any:
