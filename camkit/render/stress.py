@@ -61,6 +61,10 @@ class StressView:
     jpeg_quality : int or None
     tags : dict
         What was drawn (lens, occluders, distractors, inverted print, partial view, ...).
+    obliquity_deg : float
+        The angle between the board's normal and the line of sight to the board's centre
+        (0: seen square on; 90: edge on). The pose's tilt is drawn about the camera's axis, so a
+        board placed off the axis of a wide lens is seen more obliquely than its tilt.
     """
 
     image: np.ndarray
@@ -75,6 +79,7 @@ class StressView:
     noise: float
     jpeg_quality: int | None
     tags: dict[str, Any] = field(default_factory=dict)
+    obliquity_deg: float = 0.0
 
     @property
     def whole(self) -> bool:
@@ -381,8 +386,11 @@ def stress_view(seed: int, *, megapixels: tuple[float, float] = (0.1, 24.0),
         Image.fromarray(out).save(buf, format="JPEG", quality=quality)
         buf.seek(0)
         out = np.asarray(Image.open(buf).convert("RGB" if colour else "L"))
+    centre = pose.apply(board.object_points().mean(axis=0))
+    normal = pose.R[:, 2]
+    obliquity = float(np.degrees(np.arccos(min(1.0, abs(float(normal @ centre)) / float(np.linalg.norm(centre))))))
     return StressView(out, board, camera, corners, visible, acceptable_labellings(board, corners), square,
-                      blur, motion_px, noise, quality, tags)
+                      blur, motion_px, noise, quality, tags, obliquity)
 
 
 def _static(camera: CameraModel, pose: Pose, board: Checkerboard, supersample: int,
