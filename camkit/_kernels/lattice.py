@@ -16,7 +16,14 @@ from numba import njit
 
 from camkit._kernels.remap import keys4
 
-_COS25 = math.cos(math.radians(25.0))
+#: A seed's edge neighbours are looked for up to this many times its neighbour spacing (the
+#: median distance to its four nearest corners). Under a steep tilt the four nearest all lie
+#: along the foreshortened axis, one and two steps away, and the step along the other axis is
+#: two to three times their median.
+_SEED_REACH = 3.5
+#: How many of the seed's nearest corners are tried as its row and column neighbours.
+_SEED_NEAREST = 12
+_COS20 = math.cos(math.radians(20.0))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -135,21 +142,77 @@ def neighbour_spacing(pts: np.ndarray, out: np.ndarray) -> None:  # pragma: no c
         out[i] = np.median(np.sort(d)[:k])
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, img: np.ndarray,
+                contrast: float) -> bool:  # pragma: no cover - numba
+    """Whether ``a1 - seed - a2`` and ``b1 - seed - b2`` are a row and a column of a checker
+    lattice through ``seed``: the two lines cross at 20 degrees or more, and each of the four
+    links runs along an edge between a black and a white square. The shade is taken three
+    tenths of the other line's step either side of the link at a quarter, a half and three
+    quarters of its length (inside the two squares beside the edge), and must differ by 0.4 of
+    the seed's ``contrast``, the same way round each time. A diagonal link's middle is a
+    square's centre, with the same shade either side, and fails; so does a link two steps long,
+    whose middle is a corner, and a link across a square to a corner one column and two rows on
+    (a sheared basis of the same corners: its middle lies on an edge, its quarter points do
+    not)."""
+    ax = 0.5 * (pts[a1, 0] - pts[a2, 0])
+    ay = 0.5 * (pts[a1, 1] - pts[a2, 1])
+    bx = 0.5 * (pts[b1, 0] - pts[b2, 0])
+    by = 0.5 * (pts[b1, 1] - pts[b2, 1])
+    na, nb = math.hypot(ax, ay), math.hypot(bx, by)
+    if abs(ax * bx + ay * by) > _COS20 * na * nb:
+        return False
+    sx, sy = pts[seed, 0], pts[seed, 1]
+    for t in range(4):
+        k = a1 if t == 0 else a2 if t == 1 else b1 if t == 2 else b2
+        ox, oy = (bx, by) if t < 2 else (ax, ay)
+        first = 0.0
+        for f in (0.25, 0.5, 0.75):
+            mx, my = sx + f * (pts[k, 0] - sx), sy + f * (pts[k, 1] - sy)
+            diff = bilinear(img, mx + 0.3 * ox, my + 0.3 * oy) - bilinear(img, mx - 0.3 * ox, my - 0.3 * oy)
+            if abs(diff) < 0.4 * contrast or diff * first < 0:
+                return False
+            first = diff
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _seed_diagonals(pts: np.ndarray, used: np.ndarray, taken: np.ndarray, seed: int, R: int,
+                    G: np.ndarray) -> int:  # pragma: no cover - numba
+    """Put the seed's diagonal neighbours into ``G`` where its edge neighbours place them (within
+    a third of a step) and return how many were there."""
+    found = 0
+    for da in (1, -1):
+        for db in (1, -1):
+            ka, kb = G[R + da, R], G[R, R + db]
+            wx = pts[ka, 0] + pts[kb, 0] - pts[seed, 0]
+            wy = pts[ka, 1] + pts[kb, 1] - pts[seed, 1]
+            step = min(math.hypot(pts[ka, 0] - pts[seed, 0], pts[ka, 1] - pts[seed, 1]),
+                       math.hypot(pts[kb, 0] - pts[seed, 0], pts[kb, 1] - pts[seed, 1]))
+            k, dist = _nearest(pts, wx, wy)
+            if dist <= step / 3.0 and not taken[k] and not used[k]:
+                G[R + da, R + db] = k
+                taken[k] = True
+                found += 1
+    return found
+
+
 _EDGE_STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def grow(pts: np.ndarray, dirs: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray,
-         contrast: float, seed: int, G: np.ndarray) -> int:  # pragma: no cover - numba
+def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray, contrast: float, seed: int,
+         G: np.ndarray) -> int:  # pragma: no cover - numba
     """Grow a lattice from corner ``seed`` into ``G`` (square, odd side; the seed at its centre)
     and return how many corners it holds (1 where the seed's neighbourhood fails its checks).
 
-    The seed's four neighbours along its own edge directions (``dirs[seed]``: two unit vectors)
-    come first, among its eight nearest candidates: within 25 degrees of the direction and 0.4 to
-    2.5 of its ``spacing``. Each such link must cross an edge between a black and a white square
-    at its middle (the shade either side differs by 0.4 of the seed's ``contrast``; a diagonal
-    link crosses the middle of one square and fails), and three of the four diagonal neighbours
-    must lie where the edge neighbours put them (within a third of a step). Then position after
+    The seed's four edge neighbours come first: among its twelve nearest free candidates
+    (0.3 to 3.5 of its ``spacing`` away), pairs nearly opposite through the seed are lines
+    through it, and the shortest two lines that pass :func:`_seed_cross` (each link runs along
+    an edge between a black and a white square) and put three of the four diagonal neighbours
+    where a corner is (within a third of a step) are its row and column. No direction measured
+    at the corner itself is needed: under a steep tilt or at a fisheye's rim the profile
+    circle's edge directions are 20 degrees off or more. Then position after
     position next to the lattice is predicted from the members within two steps (quadratic or
     affine map, else the straight continuation of a row or column) and takes the candidate
     nearest the prediction if it lies within a third of the local step and is free; where two
@@ -165,48 +228,52 @@ def grow(pts: np.ndarray, dirs: np.ndarray, spacing: np.ndarray, used: np.ndarra
     d = np.empty(n)
     for j in range(n):
         d[j] = math.hypot(pts[j, 0] - pts[seed, 0], pts[j, 1] - pts[seed, 1])
-    order = np.argsort(d, kind="mergesort")[:min(9, n)]
-    for t in range(4):
-        ax = 0 if t < 2 else 1
-        sg = 1.0 if t % 2 == 0 else -1.0
-        ux, uy = sg * dirs[seed, ax, 0], sg * dirs[seed, ax, 1]
-        best = -1
-        for ii in range(1, order.shape[0]):
-            k = order[ii]
-            if taken[k] or used[k]:
-                continue
-            dist = d[k]
-            wx, wy = (pts[k, 0] - pts[seed, 0]) / dist, (pts[k, 1] - pts[seed, 1]) / dist
-            if wx * ux + wy * uy > _COS25 and 0.4 * spacing[seed] < dist < 2.5 * spacing[seed]:
-                best = k
-                break
-        if best < 0:
-            return 1
-        da, db = _EDGE_STEPS[t]
-        G[R + da, R + db] = best
-        taken[best] = True
-    # Across each link's middle the shade changes (an edge), a fifth of the link either side.
-    for t in range(4):
-        da, db = _EDGE_STEPS[t]
-        k = G[R + da, R + db]
-        dx, dy = pts[k, 0] - pts[seed, 0], pts[k, 1] - pts[seed, 1]
-        mx, my = pts[seed, 0] + 0.5 * dx, pts[seed, 1] + 0.5 * dy
-        nx, ny = -dy * 0.2, dx * 0.2
-        if abs(bilinear(img, mx + nx, my + ny) - bilinear(img, mx - nx, my - ny)) < 0.4 * contrast:
-            return 1
+    order = np.argsort(d, kind="mergesort")
+    # Candidate links: the nearest free corners, in pairs through the seed (one step either way
+    # along a row or column: the two vectors nearly opposite), shortest pairs first.
+    m = 0
+    near = np.empty(_SEED_NEAREST, dtype=np.int64)
+    for ii in range(1, n):
+        k = order[ii]
+        if d[k] >= _SEED_REACH * spacing[seed] or m == _SEED_NEAREST:
+            break
+        if d[k] > 0.3 * spacing[seed] and not taken[k] and not used[k]:
+            near[m] = k
+            m += 1
+    pa = np.empty(m * m, dtype=np.int64)
+    pb = np.empty(m * m, dtype=np.int64)
+    plen = np.empty(m * m)
+    n_pairs = 0
+    sx, sy = pts[seed, 0], pts[seed, 1]
+    for i in range(m):
+        for j in range(i + 1, m):
+            a, b = near[i], near[j]
+            ux, uy = pts[a, 0] - sx, pts[a, 1] - sy
+            vx, vy = pts[b, 0] - sx, pts[b, 1] - sy
+            mean = 0.5 * (d[a] + d[b])
+            if ux * vx + uy * vy < 0 and math.hypot(ux + vx, uy + vy) <= 0.4 * mean:
+                pa[n_pairs], pb[n_pairs], plen[n_pairs] = a, b, d[a] + d[b]
+                n_pairs += 1
+    porder = np.argsort(plen[:n_pairs], kind="mergesort")
     found_diag = 0
-    for da in (1, -1):
-        for db in (1, -1):
-            ka, kb = G[R + da, R], G[R, R + db]
-            wx = pts[ka, 0] + pts[kb, 0] - pts[seed, 0]
-            wy = pts[ka, 1] + pts[kb, 1] - pts[seed, 1]
-            step = min(math.hypot(pts[ka, 0] - pts[seed, 0], pts[ka, 1] - pts[seed, 1]),
-                       math.hypot(pts[kb, 0] - pts[seed, 0], pts[kb, 1] - pts[seed, 1]))
-            k, dist = _nearest(pts, wx, wy)
-            if dist <= step / 3.0 and not taken[k] and not used[k]:
-                G[R + da, R + db] = k
-                taken[k] = True
-                found_diag += 1
+    for i1 in range(n_pairs):
+        for i2 in range(i1 + 1, n_pairs):
+            p, q = porder[i1], porder[i2]
+            if _seed_cross(pts, seed, pa[p], pb[p], pa[q], pb[q], img, contrast):
+                G[R + 1, R], G[R - 1, R], G[R, R + 1], G[R, R - 1] = pa[p], pb[p], pa[q], pb[q]
+                for k in (pa[p], pb[p], pa[q], pb[q]):
+                    taken[k] = True
+                found_diag = _seed_diagonals(pts, used, taken, seed, R, G)
+                if found_diag >= 3:
+                    break
+                for aa in range(R - 1, R + 2):
+                    for bb in range(R - 1, R + 2):
+                        if G[aa, bb] >= 0 and G[aa, bb] != seed:
+                            taken[G[aa, bb]] = False
+                        G[aa, bb] = -1
+                G[R, R] = seed
+        if found_diag >= 3:
+            break
     if found_diag < 3:
         return 1
     count = 5 + found_diag
@@ -274,8 +341,8 @@ def grow(pts: np.ndarray, dirs: np.ndarray, spacing: np.ndarray, used: np.ndarra
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def assemble(pts: np.ndarray, dirs: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.ndarray,
-             side: int, owner: np.ndarray, coord: np.ndarray) -> int:  # pragma: no cover - numba
+def assemble(pts: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.ndarray, side: int,
+             owner: np.ndarray, coord: np.ndarray) -> int:  # pragma: no cover - numba
     """Grow lattices (:func:`grow`, in a grid of ``side``) from the candidates in ``order``;
     corners of a lattice of five or more seed no other. Writes each candidate's lattice number
     into ``owner`` (-1: none) and its lattice position into ``coord``; stops once nine tenths
@@ -291,7 +358,7 @@ def assemble(pts: np.ndarray, dirs: np.ndarray, img: np.ndarray, contrast: np.nd
     for seed in order:
         if used[seed]:
             continue
-        c = grow(pts, dirs, spacing, used, img, contrast[seed], seed, G)
+        c = grow(pts, spacing, used, img, contrast[seed], seed, G)
         if c < 5:
             continue
         for a in range(side):

@@ -102,6 +102,8 @@ class Checkerboard(Target):
 _SIGMA = 1.5  # smoothing for the saddle response (pixels)
 _PROFILE_RADIUS = 4.0  # circle on which an X-corner shows four alternating sectors
 _MAX_CANDIDATES = 5000
+#: The saddle fit's window half-size is the corner spacing over this (2 to 5 px).
+_SPACING_PER_WINDOW = 11.0
 
 
 def _to_grey(image: np.ndarray) -> np.ndarray:
@@ -184,19 +186,7 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
     return q, np.where(rest < 0.5, sigma, np.nan)
 
 
-def _edge_directions(v: np.ndarray) -> np.ndarray:
-    """The two edge lines through each corner, from the four sign changes of its profile."""
-    n = v.shape[1]
-    sign = v > v.mean(axis=1, keepdims=True)
-    change = sign != np.roll(sign, 1, axis=1)
-    idx = np.sort(np.argsort(~change, axis=1, kind="stable")[:, :4], axis=1)
-    th = (idx - 0.5) * 2 * np.pi / n
-    a = np.angle(np.exp(2j * th[:, 0]) + np.exp(2j * th[:, 2])) / 2
-    b = np.angle(np.exp(2j * th[:, 1]) + np.exp(2j * th[:, 3])) / 2
-    return np.stack([np.stack([np.cos(a), np.sin(a)], -1), np.stack([np.cos(b), np.sin(b)], -1)], axis=1)
-
-
-def _assemble(pts: np.ndarray, dirs: np.ndarray, max_side: int, img: np.ndarray,
+def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray,
               contrast: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
     """The corners' lattices: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
     turn, most central first; corners in a grown lattice seed no other. Growth stays within
@@ -207,8 +197,8 @@ def _assemble(pts: np.ndarray, dirs: np.ndarray, max_side: int, img: np.ndarray,
     side = 2 * (max_side + 2) + 1
     owner = np.empty(len(pts), dtype=np.int64)
     coord = np.empty((len(pts), 2), dtype=np.int64)
-    n = lattice_kernels.assemble(np.ascontiguousarray(pts), np.ascontiguousarray(dirs), img,
-                                 np.ascontiguousarray(contrast), order, side, owner, coord)
+    n = lattice_kernels.assemble(np.ascontiguousarray(pts), img, np.ascontiguousarray(contrast), order, side,
+                                 owner, coord)
     out = []
     for k in range(n):
         idx = np.flatnonzero(owner == k)
@@ -230,19 +220,24 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        smoothed with sigma = 1.5 px, kept where a circle of radius 4 px around them crosses
        four alternating sectors, with contrast, that are point-symmetric (true inner corners;
        the board's outer edge against the background is not).
-    2. Lattice: grown from a seed corner whose four edge neighbours lie along its own edge
-       lines (checked across each link: a link along an edge separates black from white, a
-       diagonal one does not) and whose square of nine is complete; then position after
-       position is predicted from the lattice around it (a quadratic map of lattice to image:
-       perspective and lens distortion) and takes the candidate nearest the prediction within
-       a third of the local step. Lattices are grown from every corner not yet in one; each
-       of at least half the largest's size goes through steps 3-6, and where two pass as the
+    2. Lattice: grown from a seed corner with a row and a column through it: two pairs of
+       its nearest corners, each pair nearly opposite through it, whose four links run along
+       edges (a quarter, half and three quarters along each link the squares either side
+       differ, the same way round: a diagonal link, a link two steps long and a sheared one
+       fail) and whose square of nine is complete; then position after position is predicted
+       from the lattice around it (a quadratic map of lattice to image: perspective and lens
+       distortion) and takes the candidate nearest the prediction within a third of the local
+       step. Lattices are grown from every corner not yet in one; each of at least half the
+       size of the largest that could be the board (not more than two lines longer than it
+       either way round) goes through steps 3-6, and where two pass as the
        board (the board and a second pattern), the one whose border is seen on more sides,
        less the sides where it runs out of the image, wins; on a tie the board is not found.
     3. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each corner, the
        window's half-size an eleventh of the corner spacing (2 to 5 px); each corner's sigma
        from the fit's residuals. A corner whose sigma is over twice the board's median
-       is not a clean junction (an occluder's edge, glare) and is dropped.
+       is not a clean junction (an occluder's edge, glare) and is dropped; so is one whose
+       surroundings, on a circle of 0.15 of the spacing, are not point-symmetric (a finger's
+       edge beside it pulls the fit a pixel off, too little for step 4 to see).
     4. Verification: every corner against the quadratic map fitted on its neighbours (the
        eight around it where seven or more are there, else those within two steps), itself
        left out; corners that miss it by more than 8 % of the spacing (0.6 px at least), or
@@ -266,6 +261,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        is seen to end on all four sides (the places one step out mostly inside the image,
        with no X-corner): the whole printed pattern is in view; the labels along that axis
        are then fixed up to that shift, which a calibration absorbs into the view's pose.
+       A lattice shorter than the board, or running out of the image, is labelled only
+       where no other checker pattern is in view: four or more X-corners as strong as the
+       board's away from it mean one is, and the lattice may be part of it (a second board
+       cut by the image's edge looks like a part of this one).
     6. Colours: where the half-turn changes the squares' colours (``inner_cols +
        inner_rows`` odd) they decide it, with square (0, 0) black as :class:`Checkerboard`
        defines it; otherwise either print (black or white corner squares) is accepted and
@@ -336,7 +335,7 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     spacing = _corner_spacing(c, board)
     if not np.isfinite(spacing):
         spacing = 11.0 * factor
-    r = int(np.clip(round(spacing / 11.0), 2, 5 * factor))
+    r = int(np.clip(round(spacing / _SPACING_PER_WINDOW), 2, 5 * factor))
     # The smoothing scaled by the factor, computed only on a patch around each corner (the
     # patches side by side in one mosaic): enough for the fit's window, its bicubic support and
     # the fit's moves (at most a pixel each of six iterations).
@@ -401,46 +400,84 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
         pts, v, sym = pts[keep], v[keep], sym[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
-    lattices = _assemble(pts, _edge_directions(v), max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
+    lattices = _assemble(pts, max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
     if not lattices or len(lattices[0][0]) < 4:
         return fail("not found: the corners form no lattice")
     # Each lattice of half the largest's size or more is checked and labelled in turn. Where
     # more than one passes (the board and a second pattern, e.g. a larger board cut by the
     # image's edge to the board's size), the one whose border is seen on more sides wins: its
     # extent is shown, not assumed.
+    # A lattice more than two lines longer than the board either way round (a larger pattern
+    # in view) is refused as such, and does not set that size: a small board beside a large
+    # second board is still looked at.
+    small, large = sorted((cols, rows))
+    fits = [len(idx) for idx, g in lattices
+            if sorted(g.max(axis=0) + 1)[0] <= small + 2 and sorted(g.max(axis=0) + 1)[1] <= large + 2]
+    reference = fits[0] if fits else len(lattices[0][0])
     results = []
     for idx, g in lattices:
-        if len(idx) < max(4, 0.5 * len(lattices[0][0])):
+        if len(idx) < max(4, 0.5 * reference):
             break
-        det, borders = _label(s, grey.shape, pts[idx], sym[idx], g, board)
-        results.append((det, borders))
+        det, borders, open_end = _label(s, grey.shape, pts[idx], sym[idx], g, board)
+        results.append((det, borders, open_end))
         if det.found and borders == 4:
             break
-    passed = sorted(((b, d.n_found, -i) for i, (d, b) in enumerate(results) if d.found), reverse=True)
+    passed = sorted(((b, d.n_found, -i) for i, (d, b, _) in enumerate(results) if d.found), reverse=True)
     if len(passed) > 1 and passed[0][0] == passed[1][0]:
         det = results[-passed[0][2]][0]
         return Detection.not_found(n_corners, f"not found: {len(passed)} patterns in the image pass as the "
                                               f"{cols}x{rows} board, with their borders seen on as many sides "
                                               "(another board in view?)", det.window_px)
-    return results[-passed[0][2]][0] if passed else results[0][0]
+    if not passed:
+        return results[0][0]
+    det, borders, open_end = results[-passed[0][2]]
+    if open_end:
+        # The lattice is shorter than the board, or runs out of the image: its labels rest on
+        # its being this board. Where other X-corners as strong as the board's lie away from
+        # it, another checker pattern is in view, of which this lattice may be a part as well.
+        contrast = v.max(axis=1) - v.min(axis=1)
+        c = det.corners[np.isfinite(det.corners).all(axis=1)]
+        spacing = _corner_spacing(det.corners, board)
+        near = np.hypot(*(pts[:, None, :] - c[None]).transpose(2, 0, 1)).min(axis=1)
+        on_board = near <= 2.0
+        stray = (near > 1.5 * spacing) & (contrast >= 0.5 * np.median(contrast[on_board])) if on_board.any() \
+            else np.zeros(len(pts), dtype=bool)
+        # Only strays in a pattern count: each with two others 0.3 to 3 board steps away (the
+        # scattered X-like points of a cluttered scene have none).
+        p = pts[stray]
+        gap = np.hypot(*(p[:, None, :] - p[None]).transpose(2, 0, 1))
+        stray[stray] = ((gap >= 0.3 * spacing) & (gap <= 3.0 * spacing)).sum(axis=1) >= 2
+        if stray.sum() >= _STRAY_X_CORNERS:
+            return Detection.not_found(
+                n_corners, "not found: the corners seen run out of the image or are fewer than the board's, and "
+                           f"another checker pattern is in view ({int(stray.sum())} X-corners in a pattern, as strong "
+                           "as the board's, away from it), so the lattice's labels are not fixed", det.window_px)
+    return det
+
+
+#: Strong X-corners in a pattern, away from a board cut by the image's edge or placed by its
+#: border, that mean another checker pattern is in view.
+_STRAY_X_CORNERS = 4
 
 
 def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarray, g: np.ndarray,
-           board: Checkerboard) -> tuple[Detection, int]:
+           board: Checkerboard) -> tuple[Detection, int, bool]:
     """Steps 3-6 of :func:`detect_corners` on one lattice (candidates ``pts``, lattice
-    coordinates ``g``): the detection, and on how many of its four sides the board's border
-    was seen."""
+    coordinates ``g``): the detection, on how many of its four sides the board's border was
+    seen (less the sides that run out of the image), and whether the lattice is shorter than
+    the board or runs out of the image (its labels then rest on its being this board)."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
 
-    def fail(msg: str, window: int = 0) -> tuple[Detection, int]:
-        return Detection.not_found(n_corners, msg, window), 0
+    def fail(msg: str, window: int = 0) -> tuple[Detection, int, bool]:
+        return Detection.not_found(n_corners, msg, window), 0, False
 
     spacing = _lattice_spacing(g, pts)
-    r = int(np.clip(round(spacing / 11.0), 2, 5))
+    r = int(np.clip(round(spacing / _SPACING_PER_WINDOW), 2, 5))
     q, sig = _saddle_fit(s, pts, r)
     moved = np.hypot(*(q - pts).T)
     keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & _fits_well(sig)
+    keep[keep] = _point_symmetric(s, q[keep], spacing)
     sub = np.flatnonzero(keep)
     keep[sub] = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), spacing, shape)
     g, q, sig, symq = g[keep], q[keep], sig[keep], sym[keep]
@@ -510,6 +547,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
         if off is not None:
             placed = tgt, off
             borders = sum(v == "border" for v in sides.values()) - sum(v == "outside" for v in sides.values())
+            open_end = tuple(gk.max(axis=0) + 1) != tgt or "outside" in sides.values()
             g, q, sig = gk, q[keep_t], sig[keep_t]
             break
     if placed is None:
@@ -557,12 +595,31 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     out[~inside] = np.nan
     sigma[~inside] = np.nan
     found = int(np.isfinite(out).all(axis=1).sum())
-    return Detection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)"), borders
+    return Detection(True, out, sigma, r, f"found {found} of {n_corners} corners (window {r} px)"), borders, open_end
 
 
 #: A corner whose saddle fit leaves residuals this many times the board's median (its sigma)
 #: is not a clean X-junction (an occluder's edge, a glare, a second pattern) and is dropped.
 _SIGMA_RATIO = 2.0
+
+
+#: A refined corner whose surroundings are this far from point-symmetric (mean difference
+#: between opposite points of a circle, over the circle's contrast) is not a clean X-junction.
+_MAX_ASYMMETRY = 0.15
+
+
+def _point_symmetric(s: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
+    """Which refined corners ``q`` are point-symmetric X-junctions on a circle of 0.15 of the
+    spacing (2 px at least): a finger or other occluder's edge near a corner breaks the
+    symmetry and pulls the saddle fit off the junction (a pixel and more), while the checks
+    against the lattice, which must follow a fisheye's bend, cannot see so small a shift."""
+    n = 32
+    ang = np.arange(n) * 2 * np.pi / n
+    rad = max(2.0, 0.15 * spacing)
+    v = _sample(s, q[:, :1] + rad * np.cos(ang), q[:, 1:] + rad * np.sin(ang), "bilinear")
+    contrast = np.maximum(v.max(axis=1) - v.min(axis=1), 1e-12)
+    asym = np.abs(v - np.roll(v, n // 2, axis=1)).mean(axis=1) / contrast
+    return asym <= _MAX_ASYMMETRY
 
 
 def _fits_well(sig: np.ndarray) -> np.ndarray:

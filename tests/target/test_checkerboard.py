@@ -113,8 +113,10 @@ def test_stress_sample_never_a_wrong_board():
     # through pinhole, barrel, pincushion and fisheye lenses. No returned corner carries
     # another corner's label (none lies a third of a square or more from the true corner of
     # its label, under the labellings the view allows; nor any 1 px or more from it, the
-    # issue's bound), and boards a person can see are found. Found: 18 of the 22 eligible views
-    # (the issue asks 99 %; not met, benchmarks/notes.md).
+    # issue's bound), and boards a person can see are found: every one of the 18 views with the
+    # whole board in view, squares of 12 px or more, blur up to 2 px and the board seen at most
+    # 70 degrees from square on (19 of 22 at any angle; 18 of 22 before the lattice's seed
+    # took pairs of opposite corners).
     from benchmarks.detect_corpus import eligible, score
     from camkit.render.stress import stress_view
 
@@ -132,7 +134,7 @@ def test_stress_sample_never_a_wrong_board():
             found += det.found
     assert not mislabelled
     assert far == 0
-    assert seen >= 15 and found >= 0.75 * seen, (found, seen)
+    assert seen >= 15 and found == seen, (found, seen)
 
 
 @pytest.mark.parametrize(("seed", "found"), [(1138, True), (623, False)])
@@ -153,6 +155,42 @@ def test_a_second_board_in_view_is_not_taken_for_the_board(seed, found):
         assert score(v, det.corners)[0] == 0 and det.n_found >= 0.75 * len(v.corners_px)
     else:
         assert "pass as the" in det.message
+
+
+@pytest.mark.parametrize("seed", [229, 68])
+def test_steeply_tilted_boards_are_assembled(seed):
+    """Two stress views (0.1-2 MP) the lattice could not start on: a 12x7 board seen 74 degrees
+    from square on through a pincushion lens (229), and an 11x7 board at 74 degrees near a
+    fisheye's rim (68). The four nearest corners all lie along the foreshortened axis, the profile
+    circle's edge directions were 20 degrees off, and a row and column through a seed were
+    never found ("the corners form no lattice"). The seed's row and column now come from
+    pairs of corners opposite through it, checked along each link: both boards are found with
+    every returned label right (229 whole; 68 all but corners at the rim)."""
+    from benchmarks.detect_corpus import score
+    from camkit.render.stress import stress_view
+
+    v = stress_view(seed, megapixels=(0.1, 2.0))
+    det = detect_corners(v.image, v.board)
+    assert det.found, det.message
+    assert score(v, det.corners)[0] == 0
+    assert det.n_found >= 0.9 * len(v.corners_px)
+
+
+@pytest.mark.parametrize("seed", [1090, 1651])
+def test_part_of_a_second_board_is_not_labelled_as_the_board(seed):
+    """A second, different board in view, the board itself hidden by fingers (1090) or partly
+    outside the image (1651): the second board's corners, cut by the image's edge, form a
+    lattice that fits the board (4x6 in an 8x4 pattern; 3x6 of a 10x3 one, placed against its
+    two borders). Nothing in that lattice tells it from the board; the strong X-corners away
+    from it do, and the board is not found, saying so (both were returned with 15-20 wrong
+    labels)."""
+    from camkit.render.stress import stress_view
+
+    v = stress_view(seed, megapixels=(0.1, 2.0))
+    assert "second_board" in v.tags
+    det = detect_corners(v.image, v.board)
+    assert not det.found
+    assert "another checker pattern is in view" in det.message
 
 
 def test_lens_model_puts_back_fisheye_corners_and_not_a_wrong_one():
