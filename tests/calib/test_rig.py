@@ -59,6 +59,23 @@ def test_stereo_rig_recovers_the_relative_pose_within_its_sigma() -> None:
     assert d["format"] == "camkit-rig" and d["cameras"][1]["name"] == "right"
 
 
+def test_a_12_mp_pair_is_within_a_hundredth_of_a_degree() -> None:
+    """Issue 24 item 5's figures on a sample (benchmarks/rig_acceptance.py --scale 2.5 runs 30
+    seeds: max 0.0086 deg): the same lenses on 4000x3000 sensors, 15 instants, 0.1 px. At
+    1600x1200 the rotation's own sigma (0.011 deg) is above the bound, so no estimator keeps
+    every seed within it there; at 12 MP the sigma is 0.0044 deg and every seed is."""
+    from benchmarks.rig_acceptance import cameras
+
+    left, right, _ = cameras(2.5)
+    for seed in range(6):
+        views, _ = _views([left, right], [Pose.identity(), RIGHT_FROM_LEFT], seed=seed)
+        r = calibrate_rig(views, BOARD, sizes=(4000, 3000))
+        err = _angle_deg(r.cam_from_rig[1].R, RIGHT_FROM_LEFT.R)
+        assert err < 0.01 and err < 3.5 * np.linalg.norm(r.rotation_sigma_deg[1]), (seed, err)
+        base = float(np.linalg.norm(RIGHT_FROM_LEFT.t))
+        assert abs(r.baseline_m[1] - base) / base < 5e-4
+
+
 def test_reported_sigma_matches_the_spread_over_seeds() -> None:
     """Item 5: the reported 1-sigma of the relative pose against the standard deviation of the
     estimates over 30 seeds (noise 0.1 px), within a factor of 1.5 on every axis."""
