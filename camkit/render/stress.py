@@ -4,7 +4,8 @@
 barrel or pincushion, Kannala-Brandt fisheye), a board of 3-12 by 3-10 inner corners (either
 parity, printed either way round: a colour-inverted print is a board seen from behind), a pose
 tilted up to 70 degrees with squares of 10-250 px, sometimes partly outside the frame; motion
-blur and Gaussian blur, vignetting and uneven light, clutter behind the board (smooth texture,
+blur and Gaussian blur, vignetting and uneven light, backlight (the board in shade beside a bright
+window), clutter behind the board (smooth texture,
 tiles, text, a second board of another size), finger-like occluders over it, sensor noise and
 JPEG compression (quality 40-95, through Pillow). Everything is drawn from
 ``numpy.random.default_rng(seed)``, so a seed names a view.
@@ -370,6 +371,7 @@ def stress_view(seed: int, *, megapixels: tuple[float, float] = (0.1, 24.0),
     gain = (1 - rng.uniform(0, 0.6) * r2) * (1 + rng.uniform(-0.4, 0.4) * (xx / W - 0.5)
                                               + rng.uniform(-0.4, 0.4) * (yy / H - 0.5))
     img = img * gain * rng.uniform(0.4, 1.1) + rng.uniform(0.0, 0.1)
+    img = _backlight(np.random.default_rng([seed, 21]), img, corners, tags)
     noise = float(rng.choice([0.0, rng.uniform(0.003, 0.03)], p=[0.3, 0.7]))
     colour = bool(rng.random() < 0.3)
     if colour:
@@ -391,6 +393,32 @@ def stress_view(seed: int, *, megapixels: tuple[float, float] = (0.1, 24.0),
     obliquity = float(np.degrees(np.arccos(min(1.0, abs(float(normal @ centre)) / float(np.linalg.norm(centre))))))
     return StressView(out, board, camera, corners, visible, acceptable_labellings(board, corners), square,
                       blur, motion_px, noise, quality, tags, obliquity)
+
+
+def _backlight(rng: np.random.Generator, img: np.ndarray, corners: np.ndarray, tags: dict[str, Any]) -> np.ndarray:
+    """One view in ten: the board in shade beside a bright window. The whole view is dimmed to
+    10-30 % and a band along the image side with the most room beside the board (up to a
+    tenth of the image from it) is near white, so the image's range is the window's and the
+    board spans a tenth to a third of it. Drawn from a stream of its own, so the other views
+    of the corpus are as they were."""
+    if rng.random() >= 0.1:
+        return img
+    H, W = img.shape[:2]
+    c = corners[np.isfinite(corners).all(axis=1)]
+    dim = float(rng.uniform(0.1, 0.3))
+    out = img * dim
+    room = {"left": c[:, 0].min() - 0.1 * W, "right": W - 1 - c[:, 0].max() - 0.1 * W,
+            "top": c[:, 1].min() - 0.1 * H, "bottom": H - 1 - c[:, 1].max() - 0.1 * H}
+    side = max(room, key=room.get)
+    if room[side] >= 0.05 * min(W, H):
+        n = int(room[side])
+        light = float(rng.uniform(0.85, 1.0))
+        band = {"left": np.s_[:, :n], "right": np.s_[:, W - n:], "top": np.s_[:n, :], "bottom": np.s_[H - n:, :]}
+        out[band[side]] = light
+        tags["backlit"] = f"{dim:.2f}, window {side}"
+    else:
+        tags["backlit"] = f"{dim:.2f}"
+    return out
 
 
 def _static(camera: CameraModel, pose: Pose, board: Checkerboard, supersample: int,

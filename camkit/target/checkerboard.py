@@ -141,14 +141,47 @@ def _profiles(s: np.ndarray, pts: np.ndarray, n: int = 32) -> np.ndarray:
                    "bilinear")
 
 
-def _x_test(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Which profiles ``v`` (from :func:`_profiles`) are X-corners: the circle crosses four
-    alternating sectors, with contrast, point-symmetric. Returns (is X-corner, asymmetry)."""
+def _x_shape(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Which profiles ``v`` (from :func:`_profiles`) have an X-corner's shape: the circle
+    crosses four alternating sectors, point-symmetric. Returns (shape, contrast, asymmetry)."""
     sign = v > v.mean(axis=1, keepdims=True)
     changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
     contrast = v.max(axis=1) - v.min(axis=1)
     sym = np.abs(v - np.roll(v, v.shape[1] // 2, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
-    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), sym
+    return (changes == 4) & (sym < 0.25), contrast, sym
+
+
+def _x_test(v: np.ndarray, min_contrast: float) -> tuple[np.ndarray, np.ndarray]:
+    """Which profiles ``v`` are X-corners (:func:`_x_shape`, contrast over ``min_contrast``).
+    Returns (is X-corner, asymmetry)."""
+    shape, contrast, sym = _x_shape(v)
+    return shape & (contrast > min_contrast), sym
+
+
+#: An X-corner's contrast (on the image stretched from its 1st to 99th percentile) must pass
+#: this where the image holds X-corners of full contrast...
+_MIN_CONTRAST = 0.15
+#: ... and this fraction of the strongest X-like points' contrast where it does not (a board in
+#: shade beside a window: its black and white span a tenth of the image's range)...
+_MIN_CONTRAST_FRACTION = 0.3
+#: ... but never less than this many times the noise left in the smoothed image.
+_NOISE_FACTOR = 10.0
+
+
+def _contrast_floor(contrast: np.ndarray, noise: float) -> float:
+    """The contrast an X-corner must pass: ``_MIN_CONTRAST`` where the X-like points' 90th
+    percentile contrast is high, down to ``_MIN_CONTRAST_FRACTION`` of it where all are faint,
+    and never below ``_NOISE_FACTOR`` times ``noise`` (the smoothed image's noise)."""
+    top = float(np.percentile(contrast, 90)) if len(contrast) else 1.0
+    return max(min(_MIN_CONTRAST, _MIN_CONTRAST_FRACTION * top), _NOISE_FACTOR * noise)
+
+
+def _image_noise(grey: np.ndarray) -> float:
+    """The noise's standard deviation per pixel: the median absolute difference of horizontal
+    neighbours (every fourth row), as a Gaussian's sigma (1.4826 MAD, over sqrt 2 for the
+    difference). JPEG's smoothing of flat areas makes it read low."""
+    d = np.abs(np.diff(grey[::4], axis=1))
+    return float(1.4826 * np.median(d) / np.sqrt(2.0))
 
 
 def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
@@ -218,8 +251,11 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
 
     1. X-corners: local maxima of the saddle response ``-(Ixx Iyy - Ixy^2)`` of the image
        smoothed with sigma = 1.5 px, kept where a circle of radius 4 px around them crosses
-       four alternating sectors, with contrast, that are point-symmetric (true inner corners;
-       the board's outer edge against the background is not).
+       four alternating sectors that are point-symmetric (true inner corners; the board's
+       outer edge against the background is not), with contrast: 0.15 of the image's range
+       (1st to 99th percentile), or, where the X-like points are fainter (a board in shade
+       beside a bright window), 0.3 of their 90th percentile contrast; ten times the smoothed
+       image's noise at least.
     2. Lattice: grown from a seed corner with a row and a column through it: two pairs of
        its nearest corners, each pair nearly opposite through it, whose four links run along
        edges (a quarter, half and three quarters along each link the squares either side
@@ -365,6 +401,9 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
         return Detection.not_found(len(c), f"not found: the lattice found at 1/{factor} resolution is "
                                            "inconsistent at full resolution", r)
     found = int(np.isfinite(out).all(axis=1).sum())
+    if found < 4:
+        return Detection.not_found(len(c), f"not found: of the corners found at 1/{factor} resolution, {found} pass "
+                                           "the checks at full resolution", r)
     return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
                            f"refined at full resolution (window {r} px)")
 
@@ -390,7 +429,9 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
         return fail("not found: fewer than 4 corner candidates")
     pts = buf[:n].astype(np.float64)
     v = _profiles(s, pts)
-    ok, sym = _x_test(v)
+    shape, contrast, sym = _x_shape(v)
+    min_contrast = _contrast_floor(contrast[shape], _image_noise(grey) / (2.0 * np.sqrt(np.pi) * _SIGMA))
+    ok = shape & (contrast > min_contrast)
     if ok.sum() < min(4, n_corners):
         return fail(f"not found: {int(ok.sum())} X-corners")
     pts, v, sym = pts[ok], v[ok], sym[ok]
@@ -418,7 +459,7 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
     for idx, g in lattices:
         if len(idx) < max(4, 0.5 * reference):
             break
-        det, borders, open_end = _label(s, grey.shape, pts[idx], sym[idx], g, board)
+        det, borders, open_end = _label(s, grey.shape, pts[idx], sym[idx], g, board, min_contrast)
         results.append((det, borders, open_end))
         if det.found and borders == 4:
             break
@@ -461,7 +502,7 @@ _STRAY_X_CORNERS = 4
 
 
 def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarray, g: np.ndarray,
-           board: Checkerboard) -> tuple[Detection, int, bool]:
+           board: Checkerboard, min_contrast: float = _MIN_CONTRAST) -> tuple[Detection, int, bool]:
     """Steps 3-6 of :func:`detect_corners` on one lattice (candidates ``pts``, lattice
     coordinates ``g``): the detection, on how many of its four sides the board's border was
     seen (less the sides that run out of the image), and whether the lattice is shorter than
@@ -528,7 +569,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
             # Only a lattice whose pattern is not seen to go on past either end of that axis, nor
             # to run out of the image there: either is a larger pattern (a second board cut by
             # the image's edge) as much as a board printed one line longer.
-            whole, ended = _border_evidence(s, g, q, spacing)
+            whole, ended = _border_evidence(s, g, q, spacing, min_contrast)
             ax = 0 if trimmed[0] else 1
             if {"more", "outside"} & {whole[(ax, -1)], whole[(ax, 1)]} or not all(ended.values()):
                 why = (f"the corner lattice is {ext[0]}x{ext[1]}, larger than the board's {cols}x{rows}, and the "
@@ -536,7 +577,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
                        "the one given)")
                 continue
         gk = gt[keep_t] - gt[keep_t].min(axis=0)
-        sides, ended = _border_evidence(s, gk, q[keep_t], spacing)
+        sides, ended = _border_evidence(s, gk, q[keep_t], spacing, min_contrast)
         for key, seen_end in ended.items():
             if sides[key] == "outside" and seen_end:
                 sides[key] = "ends"
@@ -815,8 +856,8 @@ def _largest_part(g: np.ndarray) -> np.ndarray:
     return np.sort(G[labels == 1 + int(np.argmax(sizes))])
 
 
-def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray,
-                     spacing: float) -> tuple[dict[tuple[int, int], str], dict[tuple[int, int], bool]]:
+def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float, min_contrast: float = _MIN_CONTRAST,
+                     ) -> tuple[dict[tuple[int, int], str], dict[tuple[int, int], bool]]:
     """What lies beyond each side of the lattice: ``"border"`` (the row of outer squares, then
     the sheet's plain margin), ``"more"`` (the checker pattern goes on: corners were missed
     there) or ``"unknown"`` (outside the image, hidden, or too faint to say).
@@ -848,7 +889,7 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray,
             inside = np.isfinite(step).all(axis=1)
             ended[(axis, side)] = False
             if inside.any():
-                is_x = _x_test(_profiles(s, step[inside]))[0]
+                is_x = _x_test(_profiles(s, step[inside]), min_contrast)[0]
                 if is_x.mean() >= 0.5:
                     out[(axis, side)] = "more"
                     continue
@@ -863,7 +904,7 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray,
             a_near = float(np.mean(sign * (n_ - n_.mean())))
             a_far = float(np.mean(sign * (f_ - f_.mean())))
             contrast = float(n_.max() - n_.min())
-            if abs(a_near) < 0.1 * max(contrast, 1e-9) or contrast < 0.1:
+            if abs(a_near) < 0.1 * max(contrast, 1e-9) or contrast < min_contrast * (0.1 / _MIN_CONTRAST):
                 out[(axis, side)] = "unknown"
             elif a_far * a_near < 0 and abs(a_far) > 0.4 * abs(a_near):
                 out[(axis, side)] = "more"

@@ -61,6 +61,15 @@ def test_corpus_spans_what_the_issue_asks():
     assert any(v.blur_sigma_px > 1 for v in views) and any(v.motion_px > 0 for v in views)
     assert any(v.tags["inverted_print"] for v in views)
     assert all(1 <= len(v.labellings) <= 4 for v in views)
+    # Backlight: the board dimmed beside a near-white window, the board's squares spanning a
+    # small part of the image's range.
+    lit = [v for v in views if "backlit" in v.tags and "window" in v.tags["backlit"]]
+    assert lit
+    for v in lit:
+        on = v.corners_px[v.visible].round().astype(int)
+        grey = v.image.mean(axis=2) if v.image.ndim == 3 else v.image
+        top = np.percentile(grey, 99)
+        assert top > 150 and np.percentile(grey[on[:, 1], on[:, 0]], 90) < 0.4 * top
 
 
 def test_obliquity_is_the_angle_to_the_line_of_sight():

@@ -157,15 +157,15 @@ def test_a_second_board_in_view_is_not_taken_for_the_board(seed, found):
         assert "pass as the" in det.message
 
 
-@pytest.mark.parametrize("seed", [229, 68])
+@pytest.mark.parametrize("seed", [229, 1081])
 def test_steeply_tilted_boards_are_assembled(seed):
     """Two stress views (0.1-2 MP) the lattice could not start on: a 12x7 board seen 74 degrees
-    from square on through a pincushion lens (229), and an 11x7 board at 74 degrees near a
-    fisheye's rim (68). The four nearest corners all lie along the foreshortened axis, the profile
+    from square on through a pincushion lens (229), and a 12x5 board at 69 degrees through a
+    fisheye (1081). The four nearest corners all lie along the foreshortened axis, the profile
     circle's edge directions were 20 degrees off, and a row and column through a seed were
     never found ("the corners form no lattice"). The seed's row and column now come from
-    pairs of corners opposite through it, checked along each link: both boards are found with
-    every returned label right (229 whole; 68 all but corners at the rim)."""
+    pairs of corners opposite through it, checked along each link: both boards are found
+    whole, every label right."""
     from benchmarks.detect_corpus import score
     from camkit.render.stress import stress_view
 
@@ -176,14 +176,13 @@ def test_steeply_tilted_boards_are_assembled(seed):
     assert det.n_found >= 0.9 * len(v.corners_px)
 
 
-@pytest.mark.parametrize("seed", [1090, 1651])
+@pytest.mark.parametrize("seed", [1090, 756])
 def test_part_of_a_second_board_is_not_labelled_as_the_board(seed):
-    """A second, different board in view, the board itself hidden by fingers (1090) or partly
-    outside the image (1651): the second board's corners, cut by the image's edge, form a
-    lattice that fits the board (4x6 in an 8x4 pattern; 3x6 of a 10x3 one, placed against its
-    two borders). Nothing in that lattice tells it from the board; the strong X-corners away
-    from it do, and the board is not found, saying so (both were returned with 15-20 wrong
-    labels)."""
+    """A second, different board in view, the board itself hidden by fingers: the second
+    board's corners form a lattice that fits the board (1090: 4x6 of an 8x4 board cut by the
+    image's edge; 756: a 3x3 corner of a 5x6 board, placed against its two borders). Nothing
+    in that lattice tells it from the board; the strong X-corners in a pattern away from it
+    do, and the board is not found, saying so (they were returned with 20 and 8 wrong labels)."""
     from camkit.render.stress import stress_view
 
     v = stress_view(seed, megapixels=(0.1, 2.0))
@@ -191,6 +190,37 @@ def test_part_of_a_second_board_is_not_labelled_as_the_board(seed):
     det = detect_corners(v.image, v.board)
     assert not det.found
     assert "another checker pattern is in view" in det.message
+
+
+def test_a_board_in_shade_beside_a_window(shared_data):
+    """Backlight (issue 21: "dark, backlit"): OpenCV's right*.jpg photos dimmed to 15 %, a white
+    window beside them (320 px), 1 grey level of noise. The image's range is the window's, the
+    board spans a tenth of it, and an X-corner's fixed contrast of 0.15 found none of the 13
+    boards (OpenCV's classic detector finds 12, SB none). The contrast asked now follows the
+    image's own X-like points and its noise: 12 are found, each with OpenCV's labels."""
+    import json
+
+    from benchmarks.detect_real import compare
+    from camkit.io import read_image
+
+    folder = shared_data / "real_boards" / "opencv_right"
+    ref = {e["image"]: e for e in json.loads((folder / "reference.json").read_text())["images"]}
+    board = Checkerboard(9, 6, 0.025)
+    found = 0
+    for path in sorted((folder / "images").glob("*.jpg")):
+        im = read_image(path).astype(np.float64)
+        im = im.mean(axis=2) if im.ndim == 3 else im
+        out = np.full((im.shape[0], im.shape[1] + 320), 250.0)
+        out[:, 320:] = 0.15 * im
+        out = np.clip(out + np.random.default_rng(0).normal(0.0, 1.0, out.shape), 0, 255).astype(np.uint8)
+        det = detect_corners(out, board)
+        if det.found:
+            found += 1
+            corners = det.corners - [320.0, 0.0]
+            med, wrong, _, _ = compare(corners, np.asarray(ref[path.name]["corners"], dtype=float).reshape(-1, 2),
+                                       9, 6)
+            assert wrong == 0 and med < 0.3, (path.name, med, wrong)
+    assert found >= 12
 
 
 def test_lens_model_puts_back_fisheye_corners_and_not_a_wrong_one():
