@@ -192,6 +192,23 @@ def test_part_of_a_second_board_is_not_labelled_as_the_board(seed):
     assert "another checker pattern is in view" in det.message
 
 
+def test_contrast_floor_follows_the_image():
+    """The contrast an X-corner must show: 0.15 of the image's range where X-like points of full
+    contrast are there; 0.3 of their 90th percentile where all are faint; ten times the
+    smoothed noise at least; and the noise read from neighbour differences."""
+    from camkit.target import checkerboard as cb
+
+    full = np.linspace(0.2, 1.0, 50)
+    assert cb._contrast_floor(full, 0.0) == pytest.approx(0.15)
+    faint = np.linspace(0.02, 0.1, 50)
+    assert cb._contrast_floor(faint, 0.0) == pytest.approx(0.3 * np.percentile(faint, 90))
+    assert cb._contrast_floor(faint, 0.004) == pytest.approx(0.04)
+    assert cb._contrast_floor(np.array([]), 0.0) == pytest.approx(0.15)
+    rng = np.random.default_rng(5)
+    noisy = 0.5 + rng.normal(0.0, 0.02, (400, 400))
+    assert cb._image_noise(noisy) == pytest.approx(0.02, rel=0.05)
+
+
 def test_a_board_in_shade_beside_a_window(shared_data):
     """Backlight (issue 21: "dark, backlit"): OpenCV's right*.jpg photos dimmed to 15 %, a white
     window beside them (320 px), 1 grey level of noise. The image's range is the window's, the
