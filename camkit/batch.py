@@ -165,16 +165,33 @@ def _read_manifest(path: Path) -> dict[str, dict[str, Any]]:
     return out
 
 
+def _inputs(item: dict[str, Any]) -> list[str]:
+    """An item's input files: ``inputs`` (several, e.g. a stereo pair), else ``input``."""
+    if item.get("inputs"):
+        return [str(p) for p in item["inputs"]]
+    return [] if item.get("input") is None else [str(item["input"])]
+
+
+def _digests(rec: dict[str, Any]) -> list[str] | None:
+    """The input hashes a record holds: ``inputs_sha256`` (several inputs) or ``input_sha256``."""
+    if "inputs_sha256" in rec:
+        return list(rec["inputs_sha256"])
+    return [rec["input_sha256"]] if "input_sha256" in rec else None
+
+
 def _complete(rec: dict[str, Any] | None, item: dict[str, Any], out_dir: Path) -> bool:
     if rec is None or rec.get("status") != "done":
         return False
-    if item.get("input") is not None and rec.get("input_sha256") != file_sha256(item["input"]):
+    paths = _inputs(item)
+    if paths and _digests(rec) != [file_sha256(p) for p in paths]:
         return False
     return all((out_dir / o).is_file() for o in rec.get("outputs", []))
 
 
 def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: Any) -> dict[str, Any]:
-    """Run one task on a worker: the task's record, or the failure with its reason."""
+    """Run one task on a worker: the task's record, or the failure with its reason. The inputs'
+    hashes are the task's own where it gives them (hashed from the bytes it decoded, one read
+    of each file), else read here."""
     t0 = time.perf_counter()
     try:
         rec = dict(func(item, context))
@@ -183,12 +200,20 @@ def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: An
         rec = {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     rec["key"] = item["key"]
     rec["seconds"] = time.perf_counter() - t0
-    if item.get("input") is not None:
+    paths = _inputs(item)
+    if paths:
+        rec["input"] = paths[0]
         try:
-            rec["input"] = str(item["input"])
-            rec["input_sha256"] = file_sha256(item["input"])
+            digests = _digests(rec) or [file_sha256(p) for p in paths]
         except OSError as exc:
             rec.update(status="failed", error=f"{type(exc).__name__}: {exc}")
+        else:
+            rec.pop("input_sha256", None)
+            rec.pop("inputs_sha256", None)
+            if len(paths) == 1:
+                rec["input_sha256"] = digests[0]
+            else:
+                rec.update(inputs=paths, inputs_sha256=digests)
     return rec
 
 
@@ -236,11 +261,14 @@ def run_batch(func: Callable[[dict[str, Any], Any], dict[str, Any]], items: Sequ
     func : callable
         A module-level function (workers import it): reads its input, writes its outputs into
         ``out_dir`` atomically, returns a JSON-ready record with ``outputs`` (names relative to
-        ``out_dir``). Any exception marks the item failed, with its type and message (a
+        ``out_dir``) and, where it read its inputs through
+        :func:`camkit.io.read_image_sha256`, their ``input_sha256`` (``inputs_sha256`` for
+        several), so that no input is read twice. Any exception marks the item failed, with its type and message (a
         100 000-image job does not stop for one bad input).
     items : list of dict
-        Each with a unique ``key`` (str) and ``input`` (a path, or None for generated items),
-        and whatever ``func`` needs; ``outputs`` (names relative to ``out_dir``) lets ``resume``
+        Each with a unique ``key`` (str) and ``input`` (a path, or None for generated items) or
+        ``inputs`` (several paths, e.g. a stereo pair: a change to any one redoes the item on
+        ``resume``), and whatever ``func`` needs; ``outputs`` (names relative to ``out_dir``) lets ``resume``
         and the clean-up know them before the task runs.
     context : object
         What every task needs; sent to every worker once (``Client.scatter`` with broadcast),

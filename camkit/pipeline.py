@@ -248,17 +248,17 @@ def _worker_map(ctx: dict[str, Any]) -> Any:
 
 def _undistort_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
     """One batch task: read an image, check its size, remap it, write the PNG atomically."""
-    from camkit.io import read_image, write_png
+    from camkit.io import read_image_sha256, write_png
     from camkit.resample import remap
 
     model = ctx["model"]
-    img = read_image(item["input"])
+    img, sha = read_image_sha256(item["input"])
     if img.shape[1] != model.width or img.shape[0] != model.height:
         raise ParameterError(f"{item['input']}: expected {model.width}x{model.height} (the camera's size), got "
                              f"{img.shape[1]}x{img.shape[0]}")
     write_png(Path(ctx["out_dir"]) / item["outputs"][0],
               remap(img, _worker_map(ctx), interpolation=ctx["interpolation"]))
-    return {"outputs": item["outputs"]}
+    return {"outputs": item["outputs"], "input_sha256": sha}
 
 
 def _undistort_map(model: CameraModel, new: CameraModel) -> Any:
@@ -449,19 +449,21 @@ def _rectify_maps(rect: Any) -> Any:
 
 def _rectify_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
     """One batch task: read a stereo pair, check the sizes, remap both, write both PNGs."""
-    from camkit.io import read_image, write_png
+    from camkit.io import read_image_sha256, write_png
     from camkit.resample import remap
 
     maps = _worker_map(ctx)
-    rect = ctx["build_args"][0]
+    rect = ctx["args"][0]
+    digests = []
     for src, dst, model, m in zip(item["inputs"], item["outputs"], (rect.left_model, rect.right_model), maps,
                                   strict=True):
-        img = read_image(src)
+        img, sha = read_image_sha256(src)
+        digests.append(sha)
         if img.shape[1] != model.width or img.shape[0] != model.height:
             raise ParameterError(f"{src}: expected {model.width}x{model.height} (the camera's size), got "
                                  f"{img.shape[1]}x{img.shape[0]}")
         write_png(Path(ctx["out_dir"]) / dst, remap(img, m, interpolation=ctx["interpolation"]))
-    return {"outputs": item["outputs"]}
+    return {"outputs": item["outputs"], "inputs_sha256": digests}
 
 
 def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[str | os.PathLike],
@@ -513,10 +515,10 @@ def rectify_files(rig: Any, left: Sequence[str | os.PathLike], right: Sequence[s
         raise ParameterError(f"{output_option}: cannot create the folder {out} ({exc.strerror or exc})") from None
     sub = CameraRig((r.names[a], r.names[b]), (r.models[a], r.models[b]), (r.cam_from_rig[a], r.cam_from_rig[b]))
     stereo_file = write_opencv_stereo_yaml(out / "stereo.yml", sub, mode=mode)
-    items = [{"key": f"{p.name}|{q.name}", "input": str(p), "inputs": [str(p), str(q)], "outputs": list(n)}
+    items = [{"key": f"{p.name}|{q.name}", "inputs": [str(p), str(q)], "outputs": list(n)}
              for p, q, n in zip(ls, rs, names, strict=True)]
     ctx = {"out_dir": str(out), "interpolation": interpolation, "token": uuid.uuid4().hex, "build": _rectify_maps,
-           "args": (rect,), "build_args": (rect,)}
+           "args": (rect,)}
     summary = run_batch(_rectify_one, items, ctx, out, client=client, scheduler=scheduler, workers=workers,
                         resume=resume, progress=progress, stage="rectify", timeout=timeout)
     written = [(out / n[0], out / n[1]) for n in names if (out / n[0]).is_file() and (out / n[1]).is_file()]
@@ -534,9 +536,9 @@ def _detect_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
     import numpy as np
 
     from camkit._atomic import write_atomic
-    from camkit.io import read_image
+    from camkit.io import read_image_sha256
 
-    img = read_image(item["input"])
+    img, sha = read_image_sha256(item["input"])
     det = ctx["target"].detect(img)
     ids = det.ids
     doc = {"format": "camkit-detection", "version": DETECTION_FORMAT_VERSION, "image": Path(item["input"]).name,
@@ -546,7 +548,8 @@ def _detect_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
            "corners_px": np.round(det.corners[ids], 6).tolist(),
            "sigma_px": [None if not np.isfinite(s) else round(float(s), 6) for s in det.sigma_px[ids]]}
     write_atomic(Path(ctx["out_dir"]) / item["outputs"][0], (_json.dumps(doc) + "\n").encode())
-    return {"outputs": item["outputs"], "found": bool(det.found), "n_found": len(ids), "message": det.message}
+    return {"outputs": item["outputs"], "found": bool(det.found), "n_found": len(ids), "message": det.message,
+            "input_sha256": sha}
 
 
 @dataclass(frozen=True, slots=True)

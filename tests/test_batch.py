@@ -77,6 +77,30 @@ def test_resume_skips_what_is_complete(client, images, tmp_path):
     assert read_image(out / "img01.png").max() == 0
 
 
+def test_resume_redoes_a_pair_whose_right_image_changed(client, images, tmp_path):
+    """A stereo pair is one item of two files: the manifest holds both files' hashes (read
+    once each, from the bytes the task decoded), and a change to the right one alone redoes
+    the pair on resume."""
+    from camkit.calib.rig import CameraRig
+    from camkit.geometry import Pose
+    from camkit.batch import file_sha256
+    from camkit.pipeline import rectify_files
+
+    rig = CameraRig(("left", "right"), (CAM, CAM), (Pose.identity(), Pose.from_rvec([0.0, 0.0, 0.0],
+                                                                                     [-0.1, 0.0, 0.0])))
+    left, right = images[:3], images[3:6]
+    out = tmp_path / "out"
+    rectify_files(rig, left, right, out, client=client, timeout=120)
+    recs = {r["key"]: r for r in map(json.loads, (out / "manifest.jsonl").read_text().splitlines())}
+    first = recs[f"{left[0].name}|{right[0].name}"]
+    assert first["inputs"] == [str(left[0]), str(right[0])] and first["input"] == str(left[0])
+    assert first["inputs_sha256"] == [file_sha256(left[0]), file_sha256(right[0])]
+    write_png(right[1], np.zeros((240, 320), np.uint8))
+    again = rectify_files(rig, left, right, out, client=client, resume=True, timeout=120).summary
+    assert again.done == 1 and again.skipped == 2
+    assert read_image(out / "right" / f"{right[1].stem}.png").max() == 0
+
+
 def test_a_worker_killed_mid_run_does_not_stop_the_job(client, tmp_path):
     """One worker process is killed (SIGKILL) after the first image is done: its tasks run
     again on the other worker or the restarted one; every output exists exactly once and no

@@ -15,6 +15,7 @@ What a reader returns, whatever the format (conventions.md, "Images"):
 
 from __future__ import annotations
 
+import hashlib
 import io
 import os
 import stat
@@ -39,6 +40,7 @@ __all__ = [
     "is_image_name",
     "read_image",
     "read_image_info",
+    "read_image_sha256",
     "read_raw",
     "write_image",
     "write_png",
@@ -346,7 +348,22 @@ def read_image(path: str | os.PathLike, *, max_pixels: int = DEFAULT_MAX_PIXELS)
     """
     p = _as_path(path)
     cap = as_positive_int(max_pixels, "max_pixels")
+    return _decode_image(_read_bytes(p), p, cap)
+
+
+def read_image_sha256(path: str | os.PathLike, *,
+                      max_pixels: int = DEFAULT_MAX_PIXELS) -> tuple[np.ndarray, str]:
+    """:func:`read_image`, and the SHA-256 (hex) of the bytes it decoded, from one read of the
+    file (a batch job's manifest records it; reading the file again to hash it would read
+    every input twice). Raises as :func:`read_image`."""
+    p = _as_path(path)
+    cap = as_positive_int(max_pixels, "max_pixels")
     data = _read_bytes(p)
+    return _decode_image(data, p, cap), hashlib.sha256(data).hexdigest()
+
+
+def _decode_image(data: bytes, p: Path, cap: int) -> np.ndarray:
+    """The pixels of ``data``, the bytes of file ``p`` (named in messages); see :func:`read_image`."""
     kind = _kind(data, p)
     if kind == "RAW":
         return _raw_to_rgb(_read_raw_data(data, p, cap))

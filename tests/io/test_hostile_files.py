@@ -20,7 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from PIL import Image
 
-from camkit.io import ImageFileError, read_image, read_image_info
+from camkit.io import ImageFileError, read_image, read_image_info, read_image_sha256
 
 _yy, _xx = np.mgrid[0:40, 0:56]
 SMALL = np.stack([(_xx * 4) % 256, (_yy * 6) % 256, (_xx + _yy) % 256], axis=-1).astype(np.uint8)
@@ -192,6 +192,28 @@ def test_not_a_regular_file(tmp_path):
     with pytest.raises(ImageFileError, match=r"fifo\.png"):
         read_image_info(fifo)
     assert time.perf_counter() - t0 < 1.0
+
+
+def test_read_image_sha256_reads_once_and_refuses_as_read_image(tmp_path):
+    """The batch jobs' reader: the same pixels as read_image and the SHA-256 of the file's bytes;
+    every hostile file of the corpus refused the same way, naming the file."""
+    import hashlib
+
+    for kind in ("png", "jpg"):
+        path = tmp_path / f"real.{kind}"
+        path.write_bytes(REAL[kind])
+        img, sha = read_image_sha256(path)
+        assert np.array_equal(img, read_image(path)) and sha == hashlib.sha256(REAL[kind]).hexdigest()
+    for name in ("zero.png", "png_header_400mp.png", "tiff_lzw_bomb.tif", "truncated_half.png", "png_bad_crc.png"):
+        path = tmp_path / name
+        path.write_bytes(CORPUS[name])
+        with pytest.raises(ImageFileError, match=name.replace(".", r"\.")):
+            read_image_sha256(path)
+    with pytest.raises(ImageFileError, match=r"missing\.png"):
+        read_image_sha256(tmp_path / "missing.png")
+    (tmp_path / "dir.png").mkdir()
+    with pytest.raises(ImageFileError, match=r"dir\.png: expected an image file, got a folder"):
+        read_image_sha256(tmp_path / "dir.png")
 
 
 def test_mislabelled_but_genuine_files_are_read_by_content(tmp_path):
