@@ -81,9 +81,9 @@ def test_resume_redoes_a_pair_whose_right_image_changed(client, images, tmp_path
     """A stereo pair is one item of two files: the manifest holds both files' hashes (read
     once each, from the bytes the task decoded), and a change to the right one alone redoes
     the pair on resume."""
+    from camkit.batch import file_sha256
     from camkit.calib.rig import CameraRig
     from camkit.geometry import Pose
-    from camkit.batch import file_sha256
     from camkit.pipeline import rectify_files
 
     rig = CameraRig(("left", "right"), (CAM, CAM), (Pose.identity(), Pose.from_rvec([0.0, 0.0, 0.0],
