@@ -316,9 +316,10 @@ def _as_list(x: Any, n: int, name: str) -> list[Any]:
     return [x] * n
 
 
-def _observations(views: Any, targets: Any, names: list[str]) -> tuple[list[list[np.ndarray | None]], list[Target]]:
+def _observations(views: Any, targets: Any,
+                  names: list[str]) -> tuple[list[list[np.ndarray | None]], list[Target], list[np.ndarray]]:
     """Per camera and instant the (N, 2) pixels (NaN rows: not seen) or None; the target per
-    instant."""
+    instant; and its object points per instant (computed once a target)."""
     n_t = len(views[0]) if isinstance(views[0], list | tuple) else 0
     for c, v in enumerate(views):
         if not isinstance(v, list | tuple):
@@ -336,15 +337,16 @@ def _observations(views: Any, targets: Any, names: list[str]) -> tuple[list[list
         tgts = list(targets)
     else:
         raise ParameterError(f"targets: expected a camkit target (or one per instant), got {type(targets).__name__}")
-    sizes: dict[int, int] = {}
+    points: dict[int, np.ndarray] = {}
     for g in tgts:
-        if id(g) not in sizes:
-            sizes[id(g)] = len(g.object_points())
+        if id(g) not in points:
+            points[id(g)] = g.object_points()
+    obj_of = [points[id(g)] for g in tgts]
     obs: list[list[np.ndarray | None]] = []
     for c, v in enumerate(views):
         row: list[np.ndarray | None] = []
         for t, d in enumerate(v):
-            n_pts = sizes[id(tgts[t])]
+            n_pts = len(obj_of[t])
             if d is None:
                 row.append(None)
                 continue
@@ -361,7 +363,7 @@ def _observations(views: Any, targets: Any, names: list[str]) -> tuple[list[list
                                  f"per target point (NaN where not seen), got shape {px.shape}")
             row.append(px)
         obs.append(row)
-    return obs, tgts
+    return obs, tgts, obj_of
 
 
 def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Target], *,
@@ -413,13 +415,8 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     if isinstance(reference, bool) or not isinstance(reference, int | np.integer) or not 0 <= reference < n_c:
         raise ParameterError(f"reference: expected a camera index in [0, {n_c}), got {reference!r}")
     reference = int(reference)
-    obs, tgts = _observations(views, targets, names)
+    obs, tgts, obj_of = _observations(views, targets, names)
     n_t = len(tgts)
-    points: dict[int, np.ndarray] = {}
-    for g in tgts:
-        if id(g) not in points:
-            points[id(g)] = g.object_points()
-    obj_of = [points[id(g)] for g in tgts]  # each instant's target points, computed once a target
     given = _as_list(intrinsics, n_c, "intrinsics") if intrinsics is not None else [None] * n_c
     for c, m in enumerate(given):
         if m is not None and not isinstance(m, CameraModel):
