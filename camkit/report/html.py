@@ -240,18 +240,7 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
             ax.set_title(label, fontsize=7, color="k" if i in pos else "#cc3311")
         thumbs_html = _fig_to_img(fig, "view thumbnails with detected corners")
 
-    # Parameter table.
-    rows_html = []
-    for name in model.param_names:
-        val = getattr(model, name)
-        sd = result.stddev.get(name)
-        t = f"<td>{getattr(truth, name):.6g}</td>" if truth is not None and hasattr(truth, name) else (
-            "<td></td>" if truth is not None else "")
-        sd_txt = f"&plusmn; {sd:.3g}" if sd is not None else "held"
-        rows_html.append(f"<tr><td>{name}</td><td>{val:.6g}</td><td>{sd_txt}</td>{t}</tr>")
-    truth_head = "<th>true</th>" if truth is not None else ""
-    table = (f"<table><tr><th>parameter</th><th>estimate</th><th>1 sigma</th>{truth_head}</tr>"
-             + "".join(rows_html) + "</table>")
+    table = param_table(result, truth)
     rej = "".join(f"<li>{html.escape(names[v])}: {html.escape(r)}</li>" for v, r in result.rejected_views)
     rejc = "".join(f"<li>{html.escape(names[v])}, corner {c}: {html.escape(r)}</li>" for v, c, r in result.rejected)
     summary = (f"<p>{model.name} model, {W}x{H} px; {len(result.view_indices)} of {n_in} views used; "
@@ -281,6 +270,22 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
         body += ["<h2>Views</h2>", "<p class=note>Detected corners in green, rejected corners as red crosses.</p>",
                  thumbs_html]
     return write_atomic(path, page(title, body).encode())
+
+
+def param_table(result: Any, truth: Any = None) -> str:
+    """The camera's parameters as an HTML table: estimate, one-sigma ("held" for a parameter
+    held fixed) and, given ``truth`` (a camera model), the true value."""
+    model = result.model
+    rows_html = []
+    for name in model.param_names:
+        sd = result.stddev.get(name)
+        t = f"<td>{getattr(truth, name):.6g}</td>" if truth is not None and hasattr(truth, name) else (
+            "<td></td>" if truth is not None else "")
+        sd_txt = f"&plusmn; {sd:.3g}" if sd is not None else "held"
+        rows_html.append(f"<tr><td>{name}</td><td>{getattr(model, name):.6g}</td><td>{sd_txt}</td>{t}</tr>")
+    truth_head = "<th>true</th>" if truth is not None else ""
+    return (f"<table><tr><th>parameter</th><th>estimate</th><th>1 sigma</th>{truth_head}</tr>"
+            + "".join(rows_html) + "</table>")
 
 
 def page(title: str, body: Sequence[str]) -> str:

@@ -13,20 +13,9 @@ import numpy as np
 
 from camkit._atomic import write_atomic
 from camkit.errors import ParameterError
-from camkit.report.html import _fig_to_img, _figure, _thumb, page
+from camkit.report.html import _fig_to_img, _figure, _thumb, page, param_table
 
 __all__ = ["write_rig_report"]
-
-
-def _param_rows(result: Any) -> str:
-    rows = []
-    for name in result.model.param_names:
-        if name in result.stddev:
-            rows.append(f"<tr><td>{name}</td><td>{getattr(result.model, name):.6g}</td>"
-                        f"<td>{result.stddev[name]:.2g}</td></tr>")
-        else:
-            rows.append(f"<tr><td>{name}</td><td>{getattr(result.model, name):.6g}</td><td>held</td></tr>")
-    return "<table><tr><th>parameter</th><th>estimate</th><th>1 sigma</th></tr>" + "".join(rows) + "</table>"
 
 
 def write_rig_report(path: str | os.PathLike, result: Any, *, pair: Sequence[np.ndarray] | None = None,
@@ -144,5 +133,5 @@ def write_rig_report(path: str | os.PathLike, result: Any, *, pair: Sequence[np.
 
     for k, name in enumerate(r.names):
         body += [f"<h2>Camera {html.escape(name)} ({r.models[k].name}, {r.models[k].width}x{r.models[k].height})</h2>",
-                 _param_rows(r.cameras[k])]
+                 param_table(r.cameras[k])]
     return write_atomic(path, page(title, body).encode())
