@@ -643,6 +643,8 @@ def simulate_files(out_dir: str | os.PathLike, camera: CameraModel, board: Targe
         raise ParameterError(f"fmt: expected 'png' or 'jpeg', got {fmt!r}")
     if bit_depth not in (8, 16) or (fmt == "jpeg" and bit_depth != 8):
         raise ParameterError(f"bit_depth: expected 8 or 16 (8 for JPEG), got {bit_depth!r}")
+    if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 100:
+        raise ParameterError(f"quality: expected an integer 1..100, got {quality!r}")
     if shard_size is None and n > 1000:
         shard_size = 1000
     size = None if shard_size is None else as_positive_int(shard_size, "shard_size")

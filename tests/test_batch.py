@@ -254,7 +254,8 @@ def test_bad_input_is_refused_before_any_work(tmp_path):
     with pytest.raises(ParameterError, match="expected tcp://HOST:PORT"):
         connect(scheduler="tcp://127.0.0.1:notaport")
     for kwargs, what in (({"fmt": "gif"}, "fmt"), ({"fmt": "jpeg", "bit_depth": 16}, "bit_depth"),
-                         ({"shard_size": 0}, "shard_size")):
+                         ({"shard_size": 0}, "shard_size"), ({"fmt": "jpeg", "quality": 0}, "quality"),
+                         ({"quality": 101}, "quality"), ({"quality": 9.5}, "quality")):
         with pytest.raises(ParameterError, match=what):
             simulate_files(tmp_path / "s", CAM, board, 2, seed=1, **kwargs)
     with pytest.raises(ParameterError, match="views"):
