@@ -115,9 +115,9 @@ def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: in
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def grey_mean(img: np.ndarray, scale: float, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """``out`` = the mean of the first three channels of ``img`` (H, W, C) (the one channel
-    where C < 3), times ``scale``."""
+def grey_mean(img: np.ndarray, scale: float, lo: float, inv: float, out: np.ndarray) -> None:  # pragma: no cover
+    """``out`` = (the mean of the first three channels of ``img`` (H, W, C) (the one channel
+    where C < 3) times ``scale``, minus ``lo``) times ``inv``: grey, stretched, in one pass."""
     H, W, C = img.shape
     n = 3 if C >= 3 else 1
     f = scale / n
@@ -126,16 +126,7 @@ def grey_mean(img: np.ndarray, scale: float, out: np.ndarray) -> None:  # pragma
             acc = 0.0
             for c in range(n):
                 acc += img[y, x, c]
-            out[y, x] = acc * f
-
-
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def stretch(g: np.ndarray, lo: float, inv: float) -> None:  # pragma: no cover - numba
-    """``g = (g - lo) * inv`` in place."""
-    H, W = g.shape
-    for y in prange(H):
-        for x in range(W):
-            g[y, x] = (g[y, x] - lo) * inv
+            out[y, x] = (acc * f - lo) * inv
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
@@ -147,3 +138,17 @@ def half_mean(img: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - n
         for x in range(w):
             out[y, x] = 0.25 * (((img[2 * y, 2 * x] + img[2 * y + 1, 2 * x]) + img[2 * y, 2 * x + 1])
                                 + img[2 * y + 1, 2 * x + 1])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:  # pragma: no cover - numba
+    """``hist[v]`` += the number of pixels of ``img`` (H, W, C) uint8, every ``step``-th row
+    and column, whose first three channels (the one channel where C < 3) sum to ``v``."""
+    H, W, C = img.shape
+    n = 3 if C >= 3 else 1
+    for y in range(0, H, step):
+        for x in range(0, W, step):
+            acc = 0
+            for c in range(n):
+                acc += np.int64(img[y, x, c])
+            hist[acc] += 1

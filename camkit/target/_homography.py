@@ -7,33 +7,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from camkit._kernels import markers as markers_kernels
+
 
 def fit_homographies(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """Least-squares homographies (normalised DLT, Hartley and Zisserman alg. 4.2) of K point
-    sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2), P >= 4, all at once: (K, 3, 3), NaN where a
-    set is degenerate (its points coincide). Exact for four points in general position."""
-    def normalise(p):
-        c = p.mean(axis=1)
-        d = np.sqrt(((p - c[:, None]) ** 2).sum(axis=2)).mean(axis=1)
-        k = np.sqrt(2.0) / np.where(d > 1e-12, d, np.nan)
-        T = np.zeros((len(p), 3, 3))
-        T[:, 0, 0] = T[:, 1, 1] = k
-        T[:, 0, 2], T[:, 1, 2], T[:, 2, 2] = -k * c[:, 0], -k * c[:, 1], 1.0
-        return np.nan_to_num((p - c[:, None]) * k[:, None, None]), T
-
-    a, Ts = normalise(src)
-    b, Td = normalise(dst)
-    K, P = a.shape[:2]
-    A = np.zeros((K, 2 * P, 9))
-    A[:, 0::2, 0:2], A[:, 0::2, 2] = a, 1.0
-    A[:, 0::2, 6:8], A[:, 0::2, 8] = -b[:, :, :1] * a, -b[:, :, 0]
-    A[:, 1::2, 3:5], A[:, 1::2, 5] = a, 1.0
-    A[:, 1::2, 6:8], A[:, 1::2, 8] = -b[:, :, 1:2] * a, -b[:, :, 1]
-    h = np.linalg.svd(A)[2][:, -1].reshape(K, 3, 3)
-    ok = np.isfinite(Td).all(axis=(1, 2)) & np.isfinite(Ts).all(axis=(1, 2))
-    H = np.full((K, 3, 3), np.nan)
-    H[ok] = np.linalg.solve(Td[ok], h[ok] @ Ts[ok])
-    return H
+    """Least-squares homographies of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2),
+    P >= 4, all at once: (K, 3, 3), NaN where a set is degenerate (its points coincide, or lie
+    on a line). The normalised DLT (Hartley and Zisserman alg. 4.2), h33 = 1 in the normalised
+    frames (:func:`camkit._kernels.markers.fit_homographies`). Exact for four points in
+    general position."""
+    src = np.ascontiguousarray(src, dtype=np.float64)
+    dst = np.ascontiguousarray(dst, dtype=np.float64)
+    out = np.empty((src.shape[0], 3, 3))
+    markers_kernels.fit_homographies(src, dst, out)
+    return out
 
 
 def fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:

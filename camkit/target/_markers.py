@@ -4,6 +4,9 @@ board's layout by their neighbours, and X-junctions refined at their saddle poin
 
 from __future__ import annotations
 
+import os
+from concurrent.futures import ThreadPoolExecutor
+
 import numpy as np
 
 from camkit._kernels import detect as detect_kernels
@@ -13,11 +16,13 @@ from camkit.target.aruco import ArucoDictionary
 from camkit.target.checkerboard import _half, _saddle_fit, _sample
 
 
-def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float) -> tuple[np.ndarray, np.ndarray]:
-    """The saddle fit (window ``r``) of each point on the image smoothed by ``sigma``, the
-    smoothing computed only on a patch around each point (the patches side by side in one
-    mosaic): enough for the window, its bicubic support and the fit's moves."""
-    half = r + 9
+def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
+                   iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    """The saddle fit (window ``r``, ``iters`` steps of at most a pixel) of each point on the
+    image smoothed by ``sigma``, the smoothing computed only on a patch around each point (the
+    patches side by side in one mosaic): enough for the window, its bicubic support and the
+    fit's moves."""
+    half = r + iters + 3
     side = 2 * half + 1
     n = len(pts)
     per_row = max(1, int(np.ceil(np.sqrt(n))))
@@ -26,7 +31,7 @@ def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float) -> t
     mosaic = np.zeros((side * ((n + per_row - 1) // per_row), side * per_row))
     detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, sigma, mosaic)
     shift = tile - origin
-    q, sg = _saddle_fit(mosaic, pts + shift, r)
+    q, sg = _saddle_fit(mosaic, pts + shift, r, iters)
     return q - shift, sg
 
 
@@ -85,57 +90,77 @@ def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: i
     return ids, turns
 
 
+def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
+    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise.
+    Serial kernels only (``nogil``): the masks' regions are labelled on threads side by side."""
+    H, W = dark.shape
+    labels = np.empty((H, W), dtype=np.int64)
+    n, stats, sums = markers_kernels.label4(dark, labels)
+    if n == 0:
+        return np.zeros((0, 4, 2))
+    quads = np.zeros((n, 4, 2))
+    markers_kernels.region_quads(labels, n, (min_side * min_side) // 2, (H * W) // 4, min_side, stats, sums, quads)
+    area = stats[:, 0].astype(np.float64)
+    w = stats[:, 3] - stats[:, 1] + 1
+    h = stats[:, 4] - stats[:, 2] + 1
+    shoelace = quad_area(quads)
+    # A quad, not a triangle or a blob: its four corners span most of the region's area.
+    ok = (area > 0) & (np.maximum(w, h) <= 8 * np.minimum(w, h)) & (np.abs(shoelace) >= 0.6 * area)
+    return np.where((shoelace > 0)[:, None, None], quads, quads[:, ::-1])[ok]
+
+
+_POOL: ThreadPoolExecutor | None = None
+
+
+def _forget_pool() -> None:
+    """A forked child has none of its parent's threads: it starts its own pool (a task queued
+    on the parent's would wait for ever)."""
+    global _POOL
+    _POOL = None
+
+
+os.register_at_fork(after_in_child=_forget_pool)
+
+
+def _pool() -> ThreadPoolExecutor:
+    """The threads the masks' regions are labelled on, started on first use."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1)), thread_name_prefix="camkit-quads")
+    return _POOL
+
+
 def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
     threshold at three window sizes (a quad found again at another window kept once). With
     ``opening``, the dark mask is opened by the 3 x 3 cross first, which parts regions that
     touch at a corner (an AprilGrid's tag and its corner squares) and keeps a border two cells
     wide at two pixels a cell, and each window is thresholded twice: 0.03 and 0.15 below the
-    local mean (the stricter one parts junctions that blur joins)."""
+    local mean (the stricter one parts junctions that blur joins). The masks are made one by
+    one (parallel kernels); their regions labelled side by side on threads."""
     H, W = g.shape
-    dark = np.empty((H, W), dtype=np.bool_)
-    opened = np.empty((H, W), dtype=np.bool_) if opening else dark
-    labels = np.empty((H, W), dtype=np.int64)
-    out: list[np.ndarray] = []
     ii = np.empty((H + 1, W + 1))
     markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
+    masks = []
     for r, c in [(r, c) for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}) for c in offsets]:
+        dark = np.empty((H, W), dtype=np.bool_)
         markers_kernels.dark_mask(g, ii, r, c, dark)
         if opening:
+            opened = np.empty((H, W), dtype=np.bool_)
             markers_kernels.cross_filter(dark, False, opened)
             markers_kernels.cross_filter(opened, True, dark)
-        n = markers_kernels.label4(dark, labels)
-        if n == 0:
-            continue
-        stats = np.empty((n, 5), dtype=np.int64)
-        quads = np.zeros((n, 4, 2))
-        markers_kernels.region_quads(labels, n, (min_side * min_side) // 2, (H * W) // 4, min_side, stats, quads)
-        area = stats[:, 0].astype(np.float64)
-        w = stats[:, 3] - stats[:, 1] + 1
-        h = stats[:, 4] - stats[:, 2] + 1
-        q = quads
-        shoelace = quad_area(q)
-        # A quad, not a triangle or a blob: its four corners span most of the region's area.
-        ok = (area > 0) & (np.maximum(w, h) <= 8 * np.minimum(w, h)) & (np.abs(shoelace) >= 0.6 * area)
-        q = np.where((shoelace > 0)[:, None, None], q, q[:, ::-1])[ok]
-        out.extend(q)
+        masks.append(dark)
+    out = [q for q in _pool().map(_region_quads, masks, [min_side] * len(masks)) if len(q)]
     if not out:
         return np.zeros((0, 4, 2))
     # One quad per marker: the windows find most markers more than once.
-    allq = np.stack(out)
+    allq = np.concatenate(out)
     centre = allq.mean(axis=1)
     span = np.ptp(allq, axis=1).max(axis=1)
     order = np.lexsort((centre[:, 1], centre[:, 0]))
     keep = np.ones(len(allq), dtype=bool)
-    for i, a in enumerate(order):  # neighbours in x order only: a short scan per quad
-        if not keep[a]:
-            continue
-        for b in order[i + 1:]:
-            if centre[b, 0] - centre[a, 0] > 0.1 * span[a]:
-                break
-            if keep[b] and np.abs(allq[b] - allq[a]).max() < 0.05 * span[a] + 1.0:
-                keep[b] = False
+    markers_kernels.unique_quads(allq, centre, span, order, keep)
     return allq[keep]
 
 
@@ -155,11 +180,12 @@ def _swollen(n: int, b: float) -> np.ndarray:
 
 
 def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
-                 corner_squares: float = 0.0) -> tuple[dict[int, list[np.ndarray]], int]:
+                 corner_squares: float = 0.0) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
     """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
     corners of every quad that holds it, (4, 2) full-image pixels in the code's order
     (top-left, top-right, bottom-right, bottom-left of the marker as the dictionary draws it),
-    and the factor of the finest pyramid level read (the scale of the detail that is left).
+    the factor of the finest pyramid level read (the scale of the detail that is left), and
+    that level's image.
 
     Quads (:func:`find_quads`) read as codes (:func:`read_markers`), from the coarsest level of
     a 2x2-mean pyramid (longer side at most :data:`MARKER_LEVEL_SIDE`) down: a finer level is
@@ -197,7 +223,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
         cells = [narrowest_side(c[0]) / f / n_cells for c in level.values()]
         if len(level) >= 2 and np.median(cells) >= 2.0:
             break
-    return found, f
+    return found, f, g
 
 
 def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, d: ArucoDictionary,
@@ -240,7 +266,9 @@ def quad_area(q: np.ndarray) -> np.ndarray:
     """The signed area of each quad ``q`` (..., 4, 2), by the shoelace formula (positive where
     the corners run clockwise in the image, y down)."""
     x, y = q[..., 0], q[..., 1]
-    return 0.5 * np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+    x1 = np.concatenate([x[..., 1:], x[..., :1]], axis=-1)
+    y1 = np.concatenate([y[..., 1:], y[..., :1]], axis=-1)
+    return 0.5 * np.sum(x * y1 - x1 * y, axis=-1)
 
 
 def narrowest_side(q: np.ndarray) -> np.ndarray:

@@ -214,7 +214,7 @@ class AprilGrid(Target):
 def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     N = grid.n_points
     full = _to_grey(image)
-    found, factor = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
+    found, factor, _ = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
     obj = grid.tag_corners()
     places = grid.tag_places()
     confirmed, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor)

@@ -188,7 +188,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image)
     # 1-2. Markers: quads whose cells read as a code.
-    found, factor = find_markers(full, board.aruco)
+    found, factor, _ = find_markers(full, board.aruco)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]

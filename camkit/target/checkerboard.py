@@ -7,6 +7,7 @@ from typing import Self
 
 import numpy as np
 
+from camkit._alloc import new_image
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
@@ -114,14 +115,38 @@ def _to_grey(image: np.ndarray) -> np.ndarray:
         bad = int(np.count_nonzero(~np.isfinite(img)))
         raise ShapeError(f"image: expected finite values, got {bad} NaN or infinite sample(s) of {img.size}")
     scale = 1.0 / np.iinfo(img.dtype).max if img.dtype.kind == "u" else 1.0
-    g = np.empty(img.shape[:2])
-    detect_kernels.grey_mean(img if img.ndim == 3 else img[:, :, None], scale, g)
+    img3 = img if img.ndim == 3 else img[:, :, None]
     # The 1st and 99th percentiles set black and white; on a large image a regular subsample of
-    # about 250 000 pixels pins them down as well, at a fraction of the cost.
-    step = max(1, int(np.sqrt(g.size / 250_000)))
-    lo, hi = np.percentile(g[::step, ::step], [1, 99])
-    detect_kernels.stretch(g, float(lo), 1.0 / max(float(hi - lo), 1e-12))
+    # about 250 000 pixels pins them down as well, at a fraction of the cost. The subsample's
+    # grey is computed as the kernel computes every pixel's, then the whole image in one pass.
+    step = max(1, int(np.sqrt(img.shape[0] * img.shape[1] / 250_000)))
+    if img.dtype == np.uint8:  # the percentiles from the histogram of channel sums, exactly
+        n = 3 if img3.shape[2] >= 3 else 1
+        hist = np.zeros(255 * n + 1, dtype=np.int64)
+        detect_kernels.channel_sum_histogram(img3, step, hist)
+        lo, hi = _hist_percentiles(hist, scale / n, (1.0, 99.0))
+    else:
+        sub = np.empty(img3[::step, ::step].shape[:2])
+        detect_kernels.grey_mean(np.ascontiguousarray(img3[::step, ::step]), scale, 0.0, 1.0, sub)
+        lo, hi = np.percentile(sub, [1, 99])
+    g = new_image(img.shape[:2], np.dtype(np.float64))
+    detect_kernels.grey_mean(img3, scale, float(lo), 1.0 / max(float(hi - lo), 1e-12), g)
     return g
+
+
+def _hist_percentiles(hist: np.ndarray, unit: float, qs: tuple[float, ...]) -> list[float]:
+    """``np.percentile`` (its default, linear interpolation between order statistics) of the
+    values ``v * unit`` counted ``hist[v]`` times."""
+    cum = np.cumsum(hist)
+    n = int(cum[-1])
+    out = []
+    for q in qs:
+        pos = q / 100.0 * (n - 1)
+        i = int(np.floor(pos))
+        a, b = np.searchsorted(cum, [i, min(i + 1, n - 1)], side="right") * unit
+        t = pos - i
+        out.append(float(a + (b - a) * t if t < 0.5 else b - (b - a) * (1.0 - t)))
+    return out
 
 
 def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray, interpolation: str) -> np.ndarray:
