@@ -9,7 +9,8 @@ and in two views of three sensor-like noise and JPEG compression (quality 60-95,
 Scored per view against the render's truth:
 
 - wrong ids: returned corners more than 1 px from the true corner of their id;
-- found: corners whose four squares are inside the frame with squares >= 15 px;
+- found: corners whose four squares are inside the frame with squares >= 15 px (along the
+  board's x and along its y: a square seen edge-on is narrow one way);
 - corner error: median over noise-free views, 95th percentile over the others;
 - OpenCV (``cv2.aruco.CharucoDetector``, defaults; OpenCV >= 5): the ids it returns that camkit
   does not, and the two detectors' errors on the ids both return.
@@ -88,7 +89,9 @@ def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
     around = camera.project(pose.apply((pts[:, None, :] + offs[None]).reshape(-1, 3))).reshape(len(pts), 9, 2)
     inside = (np.isfinite(around).all(axis=2) & (around[..., 0] >= 0) & (around[..., 0] <= W - 1)
               & (around[..., 1] >= 0) & (around[..., 1] <= H - 1)).all(axis=1)
-    step = np.hypot(*(around[:, 5] - around[:, 3]).T) / 2  # across the corner, two squares
+    # Across the corner, two squares, along the board's y and x: the narrower (a square seen
+    # edge-on is narrow across one way only).
+    step = np.minimum(np.hypot(*(around[:, 5] - around[:, 3]).T), np.hypot(*(around[:, 7] - around[:, 1]).T)) / 2
     return inside & (step >= 15)
 
 

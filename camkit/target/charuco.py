@@ -34,10 +34,18 @@ Detection reads the markers first, then places the chessboard corners by their s
    size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
    px at least), that is not an X-junction on a circle inside the white margin (four
    alternating, point-symmetric sectors), or whose fit is over twice the median sigma, is
-   dropped.
+   dropped;
+5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
+   by round, each corner next to found ones is predicted from them on the board (completing a
+   square of three found corners, else continuing a row or column), found at its saddle point
+   on the markers' pyramid level (a window and smoothing of a fifth and a twelfth of a square)
+   and then on the full image, and kept where it lies within 0.15 of a square of its
+   prediction, twice as near it as its neighbours' predicted places, on no other found
+   corner, and passes the tests of step 4.
 
-A corner is returned only next to a confirmed marker, so a board half out of the frame gives
-every corner it shows beside a marker that confirms another.
+Every returned corner is labelled by markers read where the board's layout puts them, directly
+or through a chain of squares from one, so a board half out of the frame gives every corner it
+shows that is joined to a confirmed marker.
 """
 
 from __future__ import annotations
@@ -188,7 +196,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image)
     # 1-2. Markers: quads whose cells read as a code.
-    found, factor, _ = find_markers(full, board.aruco)
+    found, factor, level = find_markers(full, board.aruco)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
@@ -257,6 +265,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * margin, 1.5))
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
+    # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
+    # the found corners around them, kept where they pass the same tests.
+    _grow(board, full, level, factor, out, sig)
     drop_poor_fits(out, sig)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
@@ -265,3 +276,131 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(confirmed)} markers (window {window} px)")
+
+
+#: How far (in squares) a corner grown past the markers may lie from its prediction.
+_REACH = 0.15
+
+
+def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
+                   pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
+                   others: np.ndarray) -> np.ndarray:
+    """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
+    across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
+    tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
+    :data:`_REACH` of a square in all, and are X-junctions on a circle inside the white
+    margin; which were kept. The coarser saddle (on ``level``, the image the markers were read
+    on, ``factor`` times smaller: a window and smoothing of a fifth and a twelfth of the
+    square, as many steps as the reach takes) finds a corner that the corners beside it
+    predict a few pixels off, as through a fisheye's rim. ``others`` (K, 4, 2): the places
+    of each corner's neighbours along the board's rows and columns as predicted with it; a
+    corner must end at least twice as near its own place as any of theirs (a neighbour's
+    junction is not taken for it)."""
+    kept = np.zeros(len(cand), dtype=bool)
+    size_l = size / factor
+    pred_l = (pred + 0.5) / factor - 0.5
+    rc = np.clip(np.round(size_l / 5.0), 2, 25).astype(int)
+    start = np.full_like(pred, np.nan)
+    for r in np.unique(rc):
+        k = np.flatnonzero(rc == r)
+        sgm = max(1.5, float(np.median(size_l[k])) / 12.0)
+        steps = int(np.clip(np.ceil(_REACH * size_l[k].max()), 6, 40))
+        q, _ = refine_patches(level, pred_l[k], int(r), sgm, iters=steps)
+        near = np.hypot(*(q - pred_l[k]).T) <= _REACH * size_l[k]
+        start[k[near]] = (q[near] + 0.5) * factor - 0.5
+    win = np.clip(np.round(size / 11.0), 2, 5 * factor).astype(int)
+    for r in np.unique(win):  # one fit per window size
+        k = np.flatnonzero((win == r) & np.isfinite(start).all(axis=1))
+        if not len(k):
+            continue
+        q, sg = refine_patches(full, start[k], int(r), 1.5 * factor)
+        moved = np.hypot(*(q - start[k]).T)
+        own = np.hypot(*(q - pred[k]).T)
+        moved[own > _REACH * size[k]] = np.inf
+        theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
+        moved[~(2.0 * own < theirs)] = np.inf
+        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
+        margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
+        ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * margin, 1.5))
+        # One junction, one label: a corner that ends on another found corner (or on another
+        # candidate's) is that corner, not this one.
+        have = out[np.isfinite(out).all(axis=1)]
+        pts = np.concatenate([have, q[ok]])
+        if len(pts) > 1 and ok.any():
+            d = np.hypot(*(q[ok][:, None] - pts[None]).transpose(2, 0, 1))
+            d[np.arange(ok.sum()), len(have) + np.arange(ok.sum())] = np.inf
+            ok[ok] = d.min(axis=1) > np.maximum(1.5 * factor, 0.25 * size[k][ok])
+        out[cand[k][ok]] = q[ok]
+        sig[cand[k][ok]] = sg[ok]
+        kept[k[ok]] = True
+    return kept
+
+
+def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
+          sig: np.ndarray) -> None:
+    """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
+    round: each predicted from the found corners beside it on the board (:func:`_extend`),
+    refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
+    tried again only once more of its neighbours are found. Where the markers are too small
+    or blurred to read, the squares still carry the corners' labels from those read."""
+    nx, ny = board.squares_x - 1, board.squares_y - 1
+    H, W = full.shape
+    tried_with = np.zeros(nx * ny, dtype=np.int64)
+    for _ in range(2 * (nx + ny)):
+        have = np.isfinite(out).all(axis=1)
+        if have.sum() < 3:
+            return
+        P = np.full((ny + 6, nx + 6, 2), np.nan)
+        P[3:-3, 3:-3] = out.reshape(ny, nx, 2)
+        # Found neighbours of each corner, the eight around it.
+        f = np.isfinite(P[..., 0])
+        nb = sum(f[3 + dy:ny + 3 + dy, 3 + dx:nx + 3 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)
+                 if dx or dy).ravel().astype(np.int64)
+        cand = np.flatnonzero(~have & (nb > tried_with))
+        if not len(cand):
+            return
+        tried_with[cand] = nb[cand]
+        pred, u, v = _extend(P, cand % nx + 3, cand // nx + 3)
+        size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
+        others = np.stack([pred + u, pred - u, pred + v, pred - v], axis=1)
+        inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4) & (pred[:, 0] >= 2)
+                  & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3))
+        if not inside.any():
+            continue
+        _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
+                       others[inside])
+
+
+def _extend(P: np.ndarray, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where the lattice ``P`` (rows, columns, 2; NaN where not found; three rows and columns
+    of NaN around the board) puts the places ``(X, Y)``, and the lattice's steps there along
+    x (``u``) and y (``v``), each (K, 2), NaN where unknown. The place completes a square of
+    three found corners (a parallelogram: exact to first order however perspective and the
+    lens bend the board), the mean of every square that gives one; else continues a row or
+    column of three found corners (quadratic) or two (linear), the mean of those."""
+    def at(dx: int, dy: int) -> np.ndarray:
+        return P[Y + dy, X + dx]
+
+    par, quad, lin, us, vs = [], [], [], [], []
+    for dx in (1, -1):
+        for dy in (1, -1):
+            a, b, d = at(dx, 0), at(0, dy), at(dx, dy)
+            par.append(a + b - d)
+            us.append((d - b) * dx)
+            vs.append((d - a) * dy)
+    for (ex, ey), steps in (((1, 0), us), ((-1, 0), us), ((0, 1), vs), ((0, -1), vs)):
+        p1, p2, p3 = at(ex, ey), at(2 * ex, 2 * ey), at(3 * ex, 3 * ey)
+        quad.append(3 * p1 - 3 * p2 + p3)
+        lin.append(2 * p1 - p2)
+        steps.append((p2 - p1) * (ex + ey))
+
+    def mean(vals: list[np.ndarray]) -> np.ndarray:
+        v = np.stack(vals)
+        n = np.isfinite(v[..., 0]).sum(axis=0)
+        with np.errstate(invalid="ignore"):
+            return np.where(n[:, None] > 0, np.nansum(v, axis=0) / np.maximum(n, 1)[:, None], np.nan)
+
+    pred = mean(par)
+    for more in (quad, lin):
+        pred = np.where(np.isfinite(pred), pred, mean(more))
+    return pred, mean(us), mean(vs)

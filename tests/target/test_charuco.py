@@ -15,6 +15,7 @@ from camkit.io import read_image
 from camkit.lens import BrownConrady, KannalaBrandt
 from camkit.render import render_target
 from camkit.target import Charuco
+from camkit.target.base import Sheet
 
 
 def _cv_board(b: Charuco):
@@ -99,6 +100,31 @@ def test_fisheye_view():
     # to ~0.15 px there (a wrong id would be a square, tens of px, away).
     assert det.n_found >= 0.8 * truth.visible.sum(), det.message
     assert err.max() < 0.2 and np.median(err) < 0.05, (err.max(), np.median(err))
+
+
+class _Unread(Charuco):
+    """A ChArUco board whose right half's markers are printed white: no code to read there."""
+
+    __slots__ = ()
+
+    def sheet(self) -> Sheet:
+        s = Charuco.sheet(self)
+        square = s.black[:, 2] - s.black[:, 0] >= 0.999 * self.square
+        keep = square | (s.black[:, 0] < 0.5 * self.squares_x * self.square)
+        return Sheet(s.extent, s.black[keep], s.label)
+
+
+def test_corners_past_the_markers_read_are_found_with_their_labels():
+    """Markers too small or blurred to read leave their squares: the corners there are reached
+    from those read, square by square. Half the board without codes: every corner found, each
+    within 0.05 px of its truth (without the growth, 20 of the 40)."""
+    b = _Unread(9, 6, 0.03, 0.021, "DICT_4X4_50")
+    img, truth = render_target(CAM, _view(b, CAM, [0.3, -0.4, 0.1], distance=1.5), b)
+    assert truth.visible.all()
+    det = b.detect(img)
+    assert det.n_found == b.n_points, det.message
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert err.max() < 0.05, err.max()
 
 
 def test_opencv_tutorial_photos(shared_data):
