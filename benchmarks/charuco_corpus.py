@@ -10,7 +10,8 @@ Scored per view against the render's truth:
 
 - wrong ids: returned corners more than 1 px from the true corner of their id;
 - found: corners whose four squares are inside the frame with squares >= 15 px (along the
-  board's x and along its y: a square seen edge-on is narrow one way);
+  board's x and along its y: a square seen edge-on is narrow one way); also over the views
+  with a marker whose cells are 2 px or more (a view without one has no label to start from);
 - corner error: median over noise-free views, 95th percentile over the others;
 - OpenCV (``cv2.aruco.CharucoDetector``, defaults; OpenCV >= 5): the ids it returns that camkit
   does not, and the two detectors' errors on the ids both return.
@@ -95,6 +96,23 @@ def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
     return inside & (step >= 15)
 
 
+def readable(board, camera, pose) -> bool:
+    """Whether a marker of the view, wholly in the frame, has cells of 2 px or more across its
+    narrowest side (the detector's least; at 1-2 px a cell no reader tells the bits apart, and
+    a view without such a marker gives no label to start from). Other targets: True (the
+    AprilGrid corpus counts only tags of 2 px a cell or more)."""
+    if not isinstance(board, Charuco):
+        return True
+    mc = board.marker_corners()
+    q = camera.project(pose.apply(mc.reshape(-1, 3))).reshape(len(mc), 4, 2)
+    W, H = camera.width, camera.height
+    inside = (np.isfinite(q).all(axis=2) & (q[..., 0] >= 0) & (q[..., 0] <= W - 1) & (q[..., 1] >= 0)
+              & (q[..., 1] <= H - 1)).all(axis=1)
+    side = np.hypot(*(q - np.roll(q, 1, axis=1)).transpose(2, 0, 1)).min(axis=1)
+    cells = board.aruco.marker_size + 2
+    return bool((inside & (side / cells >= 2.0)).any())
+
+
 def opencv_corners(board: Charuco, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(ids, pixels) of the ChArUco corners OpenCV's CharucoDetector returns."""
     cvb = cv2.aruco.CharucoBoard((board.squares_x, board.squares_y), board.square, board.marker,
@@ -134,6 +152,9 @@ def score(views: int, start: int, make_view: Callable, is_eligible: Callable, op
         el = is_eligible(board, camera, pose, truth)
         stats["eligible"] += int(el.sum())
         stats["eligible found"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
+        if readable(board, camera, pose):
+            stats["eligible, views with a readable marker"] += int(el.sum())
+            stats["eligible found, views with a readable marker"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
         ci, cc = opencv(board, img)
         stats["opencv corners"] += len(ci)
         stats["opencv wrong"] += int((np.hypot(*(cc - truth.corners_px[ci]).T) > 1.0).sum())
@@ -144,6 +165,8 @@ def score(views: int, start: int, make_view: Callable, is_eligible: Callable, op
         ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
     out = dict(stats)
     out["found %"] = 100.0 * stats["eligible found"] / max(stats["eligible"], 1)
+    out["found %, views with a readable marker"] = (100.0 * stats["eligible found, views with a readable marker"]
+                                                    / max(stats["eligible, views with a readable marker"], 1))
     out["error median noise-free px"] = float(np.median(err_clean)) if err_clean else float("nan")
     out["error 95th noisy px"] = float(np.percentile(err_noisy, 95)) if err_noisy else float("nan")
     out["camkit median on ids both find"] = float(np.median(ck_err)) if ck_err else float("nan")

@@ -446,3 +446,51 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
                 added = True
         if not added:
             return quads
+
+
+def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray,
+                   ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where a board's lattice of points puts the places ``(X, Y)`` (column and row indices),
+    and its steps there along the board's x (``u``) and y (``v``) per unit of the board frame,
+    each (K, 2), NaN where unknown. ``P`` (rows, columns, 2): the points found, NaN where not,
+    with three rows and columns of NaN around the board; ``xs``, ``ys``: the board-frame
+    coordinate of each of its columns and rows (a rectilinear grid, not necessarily evenly
+    spaced).
+
+    The place completes a rectangle of three found points (a parallelogram in the image:
+    exact to first order however perspective and the lens bend the board), the mean of every
+    rectangle that gives one; else continues a row or column of three found points (Lagrange
+    quadratic in the board coordinate) or two (linear), the mean of those."""
+    def at(dx: int, dy: int) -> np.ndarray:
+        return P[Y + dy, X + dx]
+
+    par, quad, lin, us, vs = [], [], [], [], []
+    with np.errstate(invalid="ignore"):
+        for dx in (1, -1):
+            for dy in (1, -1):
+                a, b, d = at(dx, 0), at(0, dy), at(dx, dy)
+                par.append(a + b - d)
+                us.append((d - b) / (xs[X + dx] - xs[X])[:, None])
+                vs.append((d - a) / (ys[Y + dy] - ys[Y])[:, None])
+        for (ex, ey), steps in (((1, 0), us), ((-1, 0), us), ((0, 1), vs), ((0, -1), vs)):
+            p1, p2, p3 = at(ex, ey), at(2 * ex, 2 * ey), at(3 * ex, 3 * ey)
+            c = xs if ex else ys
+            i = X if ex else Y
+            e = ex + ey
+            t0, t1, t2, t3 = (c[i][:, None], c[i + e][:, None], c[i + 2 * e][:, None], c[i + 3 * e][:, None])
+            quad.append(p1 * ((t0 - t2) * (t0 - t3) / ((t1 - t2) * (t1 - t3)))
+                        + p2 * ((t0 - t1) * (t0 - t3) / ((t2 - t1) * (t2 - t3)))
+                        + p3 * ((t0 - t1) * (t0 - t2) / ((t3 - t1) * (t3 - t2))))
+            lin.append(p1 + (p1 - p2) * ((t0 - t1) / (t1 - t2)))
+            steps.append((p1 - p2) / (t1 - t2))
+
+    def mean(vals: list[np.ndarray]) -> np.ndarray:
+        v = np.stack(vals)
+        n = np.isfinite(v[..., 0]).sum(axis=0)
+        with np.errstate(invalid="ignore"):
+            return np.where(n[:, None] > 0, np.nansum(v, axis=0) / np.maximum(n, 1)[:, None], np.nan)
+
+    pred = mean(par)
+    for more in (quad, lin):
+        pred = np.where(np.isfinite(pred), pred, mean(more))
+    return pred, mean(us), mean(vs)

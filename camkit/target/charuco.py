@@ -61,6 +61,7 @@ from camkit.target._homography import apply_homographies, apply_homography, fit_
 from camkit.target._markers import (
     confirm_markers,
     drop_poor_fits,
+    extend_lattice,
     find_markers,
     is_x_corner,
     quad_area,
@@ -339,13 +340,15 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
 def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
           sig: np.ndarray) -> None:
     """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
-    round: each predicted from the found corners beside it on the board (:func:`_extend`),
+    round: each predicted from the found corners beside it on the board (:func:`extend_lattice`),
     refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
     tried again only once more of its neighbours are found. Where the markers are too small
     or blurred to read, the squares still carry the corners' labels from those read."""
     nx, ny = board.squares_x - 1, board.squares_y - 1
     H, W = full.shape
     tried_with = np.zeros(nx * ny, dtype=np.int64)
+    s = board.square
+    xs, ys = s * np.arange(-2, nx + 4), s * np.arange(-2, ny + 4)  # the padded lattice's board places
     for _ in range(2 * (nx + ny)):
         have = np.isfinite(out).all(axis=1)
         if have.sum() < 3:
@@ -360,47 +363,16 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         if not len(cand):
             return
         tried_with[cand] = nb[cand]
-        pred, u, v = _extend(P, cand % nx + 3, cand // nx + 3)
+        pred, u, v = extend_lattice(P, cand % nx + 3, cand // nx + 3, xs, ys)
+        u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
         others = np.stack([pred + u, pred - u, pred + v, pred - v], axis=1)
-        inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4) & (pred[:, 0] >= 2)
-                  & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3))
+        # The coarse search's window and reach inside the image (its edges replicated beyond
+        # would make a saddle there).
+        edge = 0.35 * size + 2
+        inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4) & (pred[:, 0] >= edge)
+                  & (pred[:, 0] <= W - 1 - edge) & (pred[:, 1] >= edge) & (pred[:, 1] <= H - 1 - edge))
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
                        others[inside])
-
-
-def _extend(P: np.ndarray, X: np.ndarray, Y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Where the lattice ``P`` (rows, columns, 2; NaN where not found; three rows and columns
-    of NaN around the board) puts the places ``(X, Y)``, and the lattice's steps there along
-    x (``u``) and y (``v``), each (K, 2), NaN where unknown. The place completes a square of
-    three found corners (a parallelogram: exact to first order however perspective and the
-    lens bend the board), the mean of every square that gives one; else continues a row or
-    column of three found corners (quadratic) or two (linear), the mean of those."""
-    def at(dx: int, dy: int) -> np.ndarray:
-        return P[Y + dy, X + dx]
-
-    par, quad, lin, us, vs = [], [], [], [], []
-    for dx in (1, -1):
-        for dy in (1, -1):
-            a, b, d = at(dx, 0), at(0, dy), at(dx, dy)
-            par.append(a + b - d)
-            us.append((d - b) * dx)
-            vs.append((d - a) * dy)
-    for (ex, ey), steps in (((1, 0), us), ((-1, 0), us), ((0, 1), vs), ((0, -1), vs)):
-        p1, p2, p3 = at(ex, ey), at(2 * ex, 2 * ey), at(3 * ex, 3 * ey)
-        quad.append(3 * p1 - 3 * p2 + p3)
-        lin.append(2 * p1 - p2)
-        steps.append((p2 - p1) * (ex + ey))
-
-    def mean(vals: list[np.ndarray]) -> np.ndarray:
-        v = np.stack(vals)
-        n = np.isfinite(v[..., 0]).sum(axis=0)
-        with np.errstate(invalid="ignore"):
-            return np.where(n[:, None] > 0, np.nansum(v, axis=0) / np.maximum(n, 1)[:, None], np.nan)
-
-    pred = mean(par)
-    for more in (quad, lin):
-        pred = np.where(np.isfinite(pred), pred, mean(more))
-    return pred, mean(us), mean(vs)
