@@ -63,139 +63,154 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def label4(mask: np.ndarray, labels: np.ndarray) -> tuple[int, np.ndarray, np.ndarray]:  # pragma: no cover
-    """4-connected components of ``mask`` into ``labels`` (1..n, 0 off the mask), numbered in
-    raster order of their first pixel. Two passes with union-find; the second also gathers
-    each region's ``stats`` (n, 5): area, x0, y0, x1, y1 (bounding box inclusive), and
-    ``sums`` (n, 2): the sums of its pixels' x and y. Returns (n, stats, sums)."""
+def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
+    """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1)."""
     H, W = mask.shape
-    parent = np.empty(H * W // 2 + 2, dtype=np.int64)
     n = 0
     for y in range(H):
         for x in range(W):
-            if not mask[y, x]:
-                labels[y, x] = 0
-                continue
-            up = labels[y - 1, x] if y > 0 else 0
-            left = labels[y, x - 1] if x > 0 else 0
-            if up == 0 and left == 0:
+            if mask[y, x] and (x == 0 or not mask[y, x - 1]):
                 n += 1
-                if n >= parent.shape[0]:
-                    grown = np.empty(2 * parent.shape[0], dtype=np.int64)
-                    grown[:parent.shape[0]] = parent
-                    parent = grown
-                parent[n] = n
-                labels[y, x] = n
-            elif up != 0 and left != 0:
-                a, b = _find(parent, up), _find(parent, left)
-                if a != b:
-                    if a < b:
-                        parent[b] = a
-                    else:
-                        parent[a] = b
-                labels[y, x] = min(a, b)
-            else:
-                labels[y, x] = up if up != 0 else left
-    final = np.zeros(n + 1, dtype=np.int64)
-    m = 0
-    for k in range(1, n + 1):
-        root = _find(parent, k)
-        if root == k:
-            m += 1
-            final[k] = m
-    for k in range(1, n + 1):
-        final[k] = final[_find(parent, k)]
-    stats = np.empty((m, 5), dtype=np.int64)
-    sums = np.zeros((m, 2))
-    for k in range(m):
+    ry = np.empty(n, dtype=np.int64)
+    r0 = np.empty(n, dtype=np.int64)
+    r1 = np.empty(n, dtype=np.int64)
+    k = 0
+    for y in range(H):
+        x = 0
+        while x < W:
+            if mask[y, x]:
+                s = x
+                while x + 1 < W and mask[y, x + 1]:
+                    x += 1
+                ry[k], r0[k], r1[k] = y, s, x
+                k += 1
+            x += 1
+    return n, ry, r0, r1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def region_quads(mask: np.ndarray, min_area: int, max_area: int,
+                 min_side: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - numba
+    """The 4-connected regions of ``mask``, numbered in raster order of their first pixel, from
+    its runs of set pixels (a run joins those of the row above that it overlaps; union-find):
+    ``stats`` (n, 5): area, x0, y0, x1, y1 (bounding box inclusive), and, for the regions of
+    ``min_area`` to ``max_area`` pixels whose box is ``min_side`` or more a side, at most 8
+    times longer than wide and a fifth filled, ``quads`` (n, 4, 2): the farthest pixel from
+    the centroid (a), the farthest from a (b), and the farthest from the line ab on either
+    side (e, f), as (a, e, b, f), the first in raster order where several are as far. A
+    distance from a point is convex along a run and from a line linear, so only a run's ends
+    are looked at. The area of a region without a quad (left out, or all on one side of ab)
+    is made negative."""
+    H, W = mask.shape
+    nr, ry, r0, r1 = _runs(mask)
+    parent = np.arange(nr)
+    # Join each run to the runs of the row above that it overlaps (4-connected: a shared column).
+    prev_start, prev_end = 0, 0
+    i = 0
+    while i < nr:
+        y = ry[i]
+        j = i
+        while j < nr and ry[j] == y:
+            j += 1
+        if prev_end > prev_start and ry[prev_start] == y - 1:
+            p = prev_start
+            for k in range(i, j):
+                while p < prev_end and r1[p] < r0[k]:
+                    p += 1
+                q = p
+                while q < prev_end and r0[q] <= r1[k]:
+                    a, b = _find(parent, k), _find(parent, q)
+                    if a != b:
+                        if a < b:
+                            parent[b] = a
+                        else:
+                            parent[a] = b
+                    q += 1
+        prev_start, prev_end = i, j
+        i = j
+    region = np.empty(nr, dtype=np.int64)
+    n = 0
+    for k in range(nr):  # a root is its region's first run: numbered in raster order
+        if _find(parent, k) == k:
+            region[k] = n
+            n += 1
+    for k in range(nr):
+        region[k] = region[_find(parent, k)]
+    stats = np.empty((n, 5), dtype=np.int64)
+    sx = np.zeros(n)
+    sy = np.zeros(n)
+    for k in range(n):
         stats[k, 0] = 0
         stats[k, 1] = W
         stats[k, 2] = H
         stats[k, 3] = -1
         stats[k, 4] = -1
-    for y in range(H):
-        for x in range(W):
-            if labels[y, x] != 0:
-                k = final[labels[y, x]]
-                labels[y, x] = k
-                k -= 1
-                stats[k, 0] += 1
-                if x < stats[k, 1]:
-                    stats[k, 1] = x
-                if y < stats[k, 2]:
-                    stats[k, 2] = y
-                if x > stats[k, 3]:
-                    stats[k, 3] = x
-                if y > stats[k, 4]:
-                    stats[k, 4] = y
-                sums[k, 0] += x
-                sums[k, 1] += y
-    return m, stats, sums
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def region_quads(labels: np.ndarray, n: int, min_area: int, max_area: int, min_side: int, stats: np.ndarray,
-                 sums: np.ndarray, quads: np.ndarray) -> None:  # pragma: no cover - numba
-    """For the regions k (1..n) of :func:`label4` (its ``stats`` and ``sums``) of ``min_area``
-    to ``max_area`` pixels whose box is ``min_side`` or more a side, at most 8 times longer
-    than wide and a fifth filled, ``quads[k - 1]`` (4, 2): the farthest pixel from the
-    centroid (a), the farthest from a (b), and the farthest from the line ab on either side
-    (e, f), as (a, e, b, f). The area of a region without a quad (left out, or all on one
-    side of ab) is made negative. Three passes over each kept region's box."""
-    sx = np.zeros(n + 1)
-    sy = np.zeros(n + 1)
-    keep = np.zeros(n + 1, dtype=np.bool_)
-    for k in range(1, n + 1):
-        area = stats[k - 1, 0]
-        w = stats[k - 1, 3] - stats[k - 1, 1] + 1
-        h = stats[k - 1, 4] - stats[k - 1, 2] + 1
+    for k in range(nr):
+        g = region[k]
+        ln = r1[k] - r0[k] + 1
+        stats[g, 0] += ln
+        stats[g, 1] = min(stats[g, 1], r0[k])
+        stats[g, 2] = min(stats[g, 2], ry[k])
+        stats[g, 3] = max(stats[g, 3], r1[k])
+        stats[g, 4] = max(stats[g, 4], ry[k])
+        sx[g] += 0.5 * (r0[k] + r1[k]) * ln
+        sy[g] += ry[k] * ln
+    # Each region's runs, in raster order (a stable counting sort).
+    start = np.zeros(n + 1, dtype=np.int64)
+    for k in range(nr):
+        start[region[k] + 1] += 1
+    for g in range(n):
+        start[g + 1] += start[g]
+    order = np.empty(nr, dtype=np.int64)
+    fill = start[:n].copy()
+    for k in range(nr):
+        order[fill[region[k]]] = k
+        fill[region[k]] += 1
+    quads = np.zeros((n, 4, 2))
+    for g in range(n):
+        area = stats[g, 0]
+        w = stats[g, 3] - stats[g, 1] + 1
+        h = stats[g, 4] - stats[g, 2] + 1
         # A quad's box: not too thin, and a fifth of it filled at least (a curve or a cable is not).
-        keep[k] = (min_area <= area <= max_area and min(w, h) >= min_side and max(w, h) <= 8 * min(w, h)
-                   and 5 * area >= w * h)
-        if keep[k]:
-            sx[k] = sums[k - 1, 0] / area
-            sy[k] = sums[k - 1, 1] / area
-    hi = np.full(n + 1, -np.inf)
-    lo = np.full(n + 1, np.inf)
-    for k in range(1, n + 1):  # passes 2-4 over each kept region's own box only
-        if not keep[k]:
+        if not (min_area <= area <= max_area and min(w, h) >= min_side and max(w, h) <= 8 * min(w, h)
+                and 5 * area >= w * h):
+            stats[g, 0] = -area
             continue
-        x0, y0, x1, y1 = stats[k - 1, 1], stats[k - 1, 2], stats[k - 1, 3], stats[k - 1, 4]
+        cx, cy = sx[g] / area, sy[g] / area
         best = -1.0
-        for y in range(y0, y1 + 1):  # a: farthest from the centroid
-            for x in range(x0, x1 + 1):
-                if labels[y, x] == k:
-                    d = (x - sx[k]) ** 2 + (y - sy[k]) ** 2
-                    if d > best:
-                        best = d
-                        quads[k - 1, 0, 0] = x
-                        quads[k - 1, 0, 1] = y
-        ax, ay = quads[k - 1, 0, 0], quads[k - 1, 0, 1]
+        ax, ay = 0.0, 0.0
+        for t in range(start[g], start[g + 1]):  # a: farthest from the centroid
+            k = order[t]
+            for x in (r0[k], r1[k]):
+                d = (x - cx) ** 2 + (ry[k] - cy) ** 2
+                if d > best:
+                    best, ax, ay = d, x, ry[k]
         best = -1.0
-        for y in range(y0, y1 + 1):  # b: farthest from a
-            for x in range(x0, x1 + 1):
-                if labels[y, x] == k:
-                    d = (x - ax) ** 2 + (y - ay) ** 2
-                    if d > best:
-                        best = d
-                        quads[k - 1, 2, 0] = x
-                        quads[k - 1, 2, 1] = y
-        dx, dy = quads[k - 1, 2, 0] - ax, quads[k - 1, 2, 1] - ay
-        for y in range(y0, y1 + 1):  # e, f: farthest from the line ab on either side
-            for x in range(x0, x1 + 1):
-                if labels[y, x] == k:
-                    side = dx * (y - ay) - dy * (x - ax)
-                    if side > hi[k]:
-                        hi[k] = side
-                        quads[k - 1, 1, 0] = x
-                        quads[k - 1, 1, 1] = y
-                    if side < lo[k]:
-                        lo[k] = side
-                        quads[k - 1, 3, 0] = x
-                        quads[k - 1, 3, 1] = y
-    for k in range(1, n + 1):  # a region left out, or on one side of ab, has no quad: mark it
-        if not (keep[k] and hi[k] > 0 and lo[k] < 0):
-            stats[k - 1, 0] = -stats[k - 1, 0]
+        bx, by = 0.0, 0.0
+        for t in range(start[g], start[g + 1]):  # b: farthest from a
+            k = order[t]
+            for x in (r0[k], r1[k]):
+                d = (x - ax) ** 2 + (ry[k] - ay) ** 2
+                if d > best:
+                    best, bx, by = d, x, ry[k]
+        dx, dy = bx - ax, by - ay
+        hi, lo = -np.inf, np.inf
+        ex, ey, fx, fy = 0.0, 0.0, 0.0, 0.0
+        for t in range(start[g], start[g + 1]):  # e, f: farthest from the line ab on either side
+            k = order[t]
+            for x in (r0[k], r1[k]):
+                side = dx * (ry[k] - ay) - dy * (x - ax)
+                if side > hi:
+                    hi, ex, ey = side, x, ry[k]
+                if side < lo:
+                    lo, fx, fy = side, x, ry[k]
+        quads[g, 0, 0], quads[g, 0, 1] = ax, ay
+        quads[g, 1, 0], quads[g, 1, 1] = ex, ey
+        quads[g, 2, 0], quads[g, 2, 1] = bx, by
+        quads[g, 3, 0], quads[g, 3, 1] = fx, fy
+        if not (hi > 0 and lo < 0):
+            stats[g, 0] = -area
+    return stats, quads
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

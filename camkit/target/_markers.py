@@ -13,7 +13,7 @@ from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
 from camkit.target.aruco import ArucoDictionary
-from camkit.target.checkerboard import _half, _saddle_fit, _sample
+from camkit.target.checkerboard import RawGrey, _half, _saddle_fit, _sample
 
 
 def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
@@ -29,7 +29,12 @@ def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
     origin = np.floor(pts).astype(np.int64) - half
     tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
     mosaic = np.zeros((side * ((n + per_row - 1) // per_row), side * per_row))
-    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, sigma, mosaic)
+    raw = isinstance(grey, RawGrey)
+    detect_kernels.blur_patches(grey.raw if raw else grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile),
+                                side, sigma, mosaic)
+    if raw:  # the stretch is affine and the blur's taps sum to one
+        mosaic *= grey.a
+        mosaic += grey.b
     shift = tile - origin
     q, sg = _saddle_fit(mosaic, pts + shift, r, iters)
     return q - shift, sg
@@ -94,12 +99,9 @@ def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
     """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise.
     Serial kernels only (``nogil``): the masks' regions are labelled on threads side by side."""
     H, W = dark.shape
-    labels = np.empty((H, W), dtype=np.int64)
-    n, stats, sums = markers_kernels.label4(dark, labels)
-    if n == 0:
+    stats, quads = markers_kernels.region_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
+    if not len(stats):
         return np.zeros((0, 4, 2))
-    quads = np.zeros((n, 4, 2))
-    markers_kernels.region_quads(labels, n, (min_side * min_side) // 2, (H * W) // 4, min_side, stats, sums, quads)
     area = stats[:, 0].astype(np.float64)
     w = stats[:, 3] - stats[:, 1] + 1
     h = stats[:, 4] - stats[:, 2] + 1
@@ -201,6 +203,8 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
     n_cells = d.marker_size + 2 * border
     found: dict[int, list[np.ndarray]] = {}
     for g, f in reversed(levels):
+        if isinstance(g, RawGrey):
+            g = g.dense()
         quads = find_quads(g, 2 * n_cells, opening=border >= 2)  # two pixels a cell at least
         codes, turns = (read_markers(g, quads, d, border) if len(quads)
                         else (np.zeros(0, np.int64), np.zeros(0, np.int64)))

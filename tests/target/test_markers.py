@@ -85,3 +85,39 @@ def _pool_in_child() -> int:
     from camkit.target import _markers
 
     return _markers._pool().submit(abs, -3).result(timeout=10)
+
+
+def _quad_by_pixels(ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+    """The region's quad pixel by pixel in raster order: farthest from the centroid (a), from
+    a (b), and from the line ab on either side (e, f), the first where several tie."""
+    order = np.lexsort((xs, ys))
+    x, y = xs[order].astype(float), ys[order].astype(float)
+    a = np.argmax((x - x.mean()) ** 2 + (y - y.mean()) ** 2)
+    b = np.argmax((x - x[a]) ** 2 + (y - y[a]) ** 2)
+    side = (x[b] - x[a]) * (y - y[a]) - (y[b] - y[a]) * (x - x[a])
+    e, f = np.argmax(side), np.argmin(side)
+    return np.array([[x[a], y[a]], [x[e], y[e]], [x[b], y[b]], [x[f], y[f]]])
+
+
+def test_region_quads_from_runs_are_those_of_the_pixels():
+    """Regions against scipy.ndimage.label (4-connected; area and box) and each quad against
+    the pixel-by-pixel search, on random masks (the kernel looks at the runs' ends only)."""
+    from scipy import ndimage
+
+    from camkit._kernels.markers import region_quads
+
+    rng = np.random.default_rng(6)
+    for trial in range(60):
+        H, W = rng.integers(5, 90, 2)
+        m = rng.random((H, W)) < rng.uniform(0.2, 0.8)
+        if trial % 2:
+            m = ndimage.binary_opening(m)
+        lab, n = ndimage.label(m)
+        stats, quads = region_quads(m, 3, H * W, 2)
+        assert len(stats) == n
+        for k, box in enumerate(ndimage.find_objects(lab)):  # scipy numbers regions in raster order too
+            ys, xs = np.nonzero(lab == k + 1)
+            assert abs(stats[k, 0]) == len(ys)
+            assert tuple(stats[k, 1:]) == (box[1].start, box[0].start, box[1].stop - 1, box[0].stop - 1)
+            if stats[k, 0] > 0:
+                np.testing.assert_array_equal(quads[k], _quad_by_pixels(ys, xs))
