@@ -213,7 +213,7 @@ class AprilGrid(Target):
 
 def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     N = grid.n_points
-    full = _to_grey(image)
+    full = _to_grey(image, lazy=True)
     found, factor, _ = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
     obj = grid.tag_corners()
     places = grid.tag_places()

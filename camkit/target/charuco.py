@@ -195,7 +195,7 @@ class Charuco(Target):
 
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
-    full = _to_grey(image)
+    full = _to_grey(image, lazy=True)
     # 1-2. Markers: quads whose cells read as a code.
     found, factor, level = find_markers(full, board.aruco)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.

@@ -107,9 +107,34 @@ _MAX_CANDIDATES = 5000
 _SPACING_PER_WINDOW = 11.0
 
 
-def _to_grey(image: np.ndarray) -> np.ndarray:
+class RawGrey:
+    """A one-channel uint8 image seen as its stretched grey, ``raw * a + b``, without making
+    the float64 image (96 MB at 12 MP): the coded targets' detectors read it on a coarser
+    level and in small patches only. :func:`_sample`, :func:`_half` and the marker module's
+    patch fits take it as they take a float64 image; the stretch is affine, so sampling or
+    averaging ``raw`` and then stretching gives the same values. :meth:`dense` makes the
+    float64 image where a whole one is needed."""
+
+    __slots__ = ("_dense", "a", "b", "raw", "shape")
+
+    def __init__(self, raw: np.ndarray, a: float, b: float) -> None:
+        self.raw, self.a, self.b = raw, a, b
+        self.shape: tuple[int, int] = raw.shape
+        self._dense: np.ndarray | None = None
+
+    def dense(self) -> np.ndarray:
+        """The float64 grey image (made once)."""
+        if self._dense is None:
+            g = new_image(self.shape, np.dtype(np.float64))
+            detect_kernels.grey_mean(self.raw[:, :, None], 1.0, -self.b / self.a, self.a, g)
+            self._dense = g
+        return self._dense
+
+
+def _to_grey(image: np.ndarray, lazy: bool = False) -> np.ndarray:
     """The image as float64 grey (the mean of R, G and B; alpha ignored), stretched so that its
-    1st percentile is 0 and its 99th is 1."""
+    1st percentile is 0 and its 99th is 1. ``lazy``: a one-channel uint8 image comes back as
+    a :class:`RawGrey` (the same values, made where read)."""
     img = as_image(image, "image")
     if img.dtype.kind == "f" and not np.isfinite(img).all():
         bad = int(np.count_nonzero(~np.isfinite(img)))
@@ -129,8 +154,11 @@ def _to_grey(image: np.ndarray) -> np.ndarray:
         sub = np.empty(img3[::step, ::step].shape[:2])
         detect_kernels.grey_mean(np.ascontiguousarray(img3[::step, ::step]), scale, 0.0, 1.0, sub)
         lo, hi = np.percentile(sub, [1, 99])
+    inv = 1.0 / max(float(hi - lo), 1e-12)
+    if lazy and img.dtype == np.uint8 and img3.shape[2] < 3:
+        return RawGrey(np.ascontiguousarray(img3[:, :, 0]), scale * inv, -float(lo) * inv)  # type: ignore[return-value]
     g = new_image(img.shape[:2], np.dtype(np.float64))
-    detect_kernels.grey_mean(img3, scale, float(lo), 1.0 / max(float(hi - lo), 1e-12), g)
+    detect_kernels.grey_mean(img3, scale, float(lo), inv, g)
     return g
 
 
@@ -153,10 +181,14 @@ def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray, interpolation: str) -
     """The image at points (x, y) of any shape, bilinear or bicubic, edges replicated."""
     out = np.empty(np.broadcast_shapes(x.shape, y.shape))
     xb, yb = np.broadcast_arrays(x, y)
-    lattice_kernels.sample_points(np.ascontiguousarray(img, dtype=np.float64),
+    raw = isinstance(img, RawGrey)
+    lattice_kernels.sample_points(img.raw if raw else np.ascontiguousarray(img, dtype=np.float64),
                                   np.ascontiguousarray(xb, dtype=np.float64).ravel(),
                                   np.ascontiguousarray(yb, dtype=np.float64).ravel(), interpolation == "bicubic",
                                   out.ravel())
+    if raw:
+        out *= img.a
+        out += img.b
     return out
 
 
@@ -382,6 +414,11 @@ def _corner_spacing(corners: np.ndarray, board: Checkerboard) -> float:
 def _half(img: np.ndarray) -> np.ndarray:
     """The 2x2 mean: pixel (x, y) of the half image covers full-resolution pixels 2x..2x+1."""
     out = np.empty((img.shape[0] // 2, img.shape[1] // 2))
+    if isinstance(img, RawGrey):
+        detect_kernels.half_mean(img.raw, out)
+        out *= img.a
+        out += img.b
+        return out
     detect_kernels.half_mean(np.ascontiguousarray(img, dtype=np.float64), out)
     return out
 
