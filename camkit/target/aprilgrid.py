@@ -36,7 +36,12 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    X-junction's circle scaled by the tag's narrowest side: a tilted tag's border and corner
    squares are narrow across the tilt), with its sigma; a fit that does not converge, moves
    more than 0.45 of a corner square (the next junction is a square away) or is not an
-   X-junction is dropped, and tried again from the corners found around it;
+   X-junction is dropped, and tried again from the corners found around it; then the points
+   of tags not read (too small, blurred, or bent by a lens past reading through their four
+   corners) are reached from those found, junction by junction (completing a rectangle of
+   three found points, else continuing a row or column), each kept within a quarter of a
+   corner square of its prediction, nearer it than its neighbours' places, and on no other
+   point;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
@@ -56,6 +61,7 @@ from camkit.target._markers import (
     confirm_markers,
     consistent_points,
     drop_poor_fits,
+    extend_lattice,
     find_markers,
     is_x_corner,
     narrowest_side,
@@ -257,6 +263,9 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         if not ok.any():
             break
         _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], factor, out, sig)
+    # Corners of tags not read (too small, blurred, or bent by the lens past reading through
+    # their four corners), reached from the corners found, junction by junction.
+    _grow(grid, full, out, sig, factor)
     drop_poor_fits(out, sig)
     # Each tag read again through its corners as found (the quad's where one is missing): a
     # corner at another junction, or in a corner square, turns the tag's cells and border
@@ -292,9 +301,9 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
 
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray, factor: int,
-            out: np.ndarray, sig: np.ndarray) -> np.ndarray:
+            out: np.ndarray, sig: np.ndarray, reach: float = 0.45) -> np.ndarray:
     """The corners ``ids`` at their saddle points from ``pred``, written into ``out`` and
-    ``sig`` where the fit converges within 0.45 of a corner square of the prediction (the
+    ``sig`` where the fit converges within ``reach`` of a corner square of the prediction (the
     nearest other junction is a corner square away) and the point is an X-junction on a
     circle inside its clean radius (the tag's border and the corner square, the smaller).
     Returns the windows used."""
@@ -308,8 +317,8 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
         k = win == r
         q, sg = refine_patches(full, pred[k], int(r), 1.5 * factor)
         moved = np.hypot(*(q - pred[k]).T)
-        reach = np.maximum(1.5 * factor, 0.45 * grid.tag_spacing * tag_px[k])
-        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= reach)
+        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, reach * grid.tag_spacing
+                                                                          * tag_px[k]))
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
@@ -327,3 +336,60 @@ def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
     s = np.concatenate(sides)
     return float(np.median(s)) if s.size else 0.0
 
+
+
+#: How far (in corner squares) a point grown past the tags read may move from its prediction.
+_GROWN_REACH = 0.25
+
+
+def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int) -> None:
+    """Add the grid's points next to found ones (``out``, NaN where not found), round by round:
+    each predicted from the points found beside it on the grid (:func:`extend_lattice`), fitted
+    and tested as :func:`_refine` does, and kept where it ends twice as near its own predicted
+    place as its neighbours' along the grid's rows and columns, within :data:`_GROWN_REACH` of a
+    corner square of it (0.45 for a tag's own corners), and on no other found point. A
+    point is tried again only once more of its neighbours are found. The check of every point
+    against its neighbours that follows (:func:`consistent_points`) covers these too."""
+    nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
+    T = grid.tag_size
+    idx_x, idx_y = np.arange(-3, nx + 3), np.arange(-3, ny + 3)
+    xs = (idx_x // 2) * grid.pitch + (idx_x % 2) * T  # the padded lattice's board places
+    ys = (idx_y // 2) * grid.pitch + (idx_y % 2) * T
+    tried_with = np.zeros(nx * ny, dtype=np.int64)
+    for _ in range(2 * (nx + ny)):
+        have = np.isfinite(out).all(axis=1)
+        if have.sum() < 3:
+            return
+        P = np.full((ny + 6, nx + 6, 2), np.nan)
+        P[3:-3, 3:-3] = out.reshape(ny, nx, 2)
+        f = np.isfinite(P[..., 0])
+        nb = sum(f[3 + dy:ny + 3 + dy, 3 + dx:nx + 3 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)
+                 if dx or dy).ravel().astype(np.int64)
+        cand = np.flatnonzero(~have & (nb > tried_with))
+        if not len(cand):
+            return
+        tried_with[cand] = nb[cand]
+        X, Y = cand % nx + 3, cand // nx + 3
+        pred, u, v = extend_lattice(P, X, Y, xs, ys)
+        tag_px = np.fmin(np.hypot(*u.T), np.hypot(*v.T)) * T
+        others = np.stack([pred + u * (xs[X + 1] - xs[X])[:, None], pred + u * (xs[X - 1] - xs[X])[:, None],
+                           pred + v * (ys[Y + 1] - ys[Y])[:, None], pred + v * (ys[Y - 1] - ys[Y])[:, None]], axis=1)
+        ok = np.isfinite(pred).all(axis=1) & np.isfinite(tag_px) & (tag_px >= 8)
+        if not ok.any():
+            continue
+        cand, pred, tag_px, others = cand[ok], pred[ok], tag_px[ok], others[ok]
+        tmp, tsig = np.full_like(out, np.nan), np.full_like(sig, np.nan)
+        _refine(grid, full, cand, pred, tag_px, factor, tmp, tsig, _GROWN_REACH)
+        q = tmp[cand]
+        got = np.isfinite(q).all(axis=1)
+        own = np.hypot(*(q - pred).T)
+        theirs = np.hypot(*(q[:, None] - others).transpose(2, 0, 1)).min(axis=1)
+        got &= 2.0 * own < theirs
+        # One junction, one label: a point that ends on another found point is that point.
+        pts = np.concatenate([out[have], q[got]])
+        if got.any() and len(pts) > 1:
+            d = np.hypot(*(q[got][:, None] - pts[None]).transpose(2, 0, 1))
+            d[np.arange(got.sum()), have.sum() + np.arange(got.sum())] = np.inf
+            got[got] = d.min(axis=1) > np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got])
+        out[cand[got]] = q[got]
+        sig[cand[got]] = tsig[cand[got]]
