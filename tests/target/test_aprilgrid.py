@@ -15,6 +15,7 @@ from camkit.geometry import Pose
 from camkit.lens import BrownConrady, KannalaBrandt
 from camkit.render import render_target
 from camkit.target import AprilGrid
+from camkit.target.base import Sheet
 
 
 def _kalibr_points(tag_rows: int, tag_cols: int, size: float, spacing: float) -> np.ndarray:
@@ -130,6 +131,35 @@ def test_tilted_views(rvec):
     img, truth = render_target(CAM, _view(g, CAM, rvec), g)
     err = _check(g.detect(img), truth, g, 0.98)
     assert np.median(err) < 0.03
+
+
+class _Blotted(AprilGrid):
+    """An AprilGrid whose right half's tags are printed solid black: no code to read there."""
+
+    __slots__ = ()
+
+    def sheet(self) -> Sheet:
+        s = AprilGrid.sheet(self)
+        o = self.tag_places() * self.pitch
+        right = o[self.tag_places()[:, 0] >= self.tags_x / 2]
+        r = s.black
+        inside = ((r[:, None, 0] >= right[None, :, 0] - 1e-9) & (r[:, None, 2] <= right[None, :, 0] + self.tag_size + 1e-9)
+                  & (r[:, None, 1] >= right[None, :, 1] - 1e-9)
+                  & (r[:, None, 3] <= right[None, :, 1] + self.tag_size + 1e-9)).any(axis=1)
+        solid = np.c_[right, right + self.tag_size]
+        return Sheet(s.extent, np.concatenate([r[~inside], solid]), s.label, v_up=True)
+
+
+def test_points_of_tags_not_read_are_grown_from_those_found():
+    """Tags that cannot be read (here printed solid) still have X-junctions at their corners:
+    reached from the tags read, every point is found at its truth (without the growth, half)."""
+    g = _Blotted(6, 4, 0.03, 0.3)
+    img, truth = render_target(CAM, _view(g, CAM, (0.3, -0.2, 0.1)), g)
+    assert truth.visible.all()
+    det = g.detect(img)
+    assert det.n_found == g.n_points, det.message
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert err.max() < 0.05, err.max()
 
 
 def test_a_grid_half_out_of_the_frame_gives_the_corners_it_shows():
