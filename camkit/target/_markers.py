@@ -498,3 +498,45 @@ def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray, 
     for more in (quad, lin)[:rules - 1]:
         pred = np.where(np.isfinite(pred), pred, mean(more))
     return pred, mean(us), mean(vs)
+
+
+def lattice_rounds(out: np.ndarray, nx: int, ny: int, xs: np.ndarray, ys: np.ndarray):
+    """Rounds of growing a board's lattice of points (``out`` (ny nx, 2), row by row, NaN where
+    not found; the caller writes the points it keeps into ``out`` between rounds). Each round
+    yields ``(cand, pred, u, v, others)``: the points not found that have more found
+    neighbours (of the eight around) than when last tried, where :func:`extend_lattice` puts
+    them (``xs``, ``ys``: the board coordinates of the columns and rows, three beyond the
+    board each side), its steps per board unit, and the places of each one's four neighbours
+    along the rows and columns, (K, 4, 2). Ends when fewer than three points are found or no
+    point has new neighbours."""
+    tried_with = np.zeros(nx * ny, dtype=np.int64)
+    for _ in range(2 * (nx + ny)):
+        have = np.isfinite(out).all(axis=1)
+        if have.sum() < 3:
+            return
+        P = np.full((ny + 6, nx + 6, 2), np.nan)
+        P[3:-3, 3:-3] = out.reshape(ny, nx, 2)
+        f = np.isfinite(P[..., 0])
+        nb = sum(f[3 + dy:ny + 3 + dy, 3 + dx:nx + 3 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)
+                 if dx or dy).ravel().astype(np.int64)
+        cand = np.flatnonzero(~have & (nb > tried_with))
+        if not len(cand):
+            return
+        tried_with[cand] = nb[cand]
+        X, Y = cand % nx + 3, cand // nx + 3
+        pred, u, v = extend_lattice(P, X, Y, xs, ys)
+        others = np.stack([pred + u * (xs[X + 1] - xs[X])[:, None], pred + u * (xs[X - 1] - xs[X])[:, None],
+                           pred + v * (ys[Y + 1] - ys[Y])[:, None], pred + v * (ys[Y - 1] - ys[Y])[:, None]], axis=1)
+        yield cand, pred, u, v, others
+
+
+def apart_from_found(q: np.ndarray, found: np.ndarray, tol: np.ndarray) -> np.ndarray:
+    """Which of the new points ``q`` (K, 2) lie more than ``tol`` (K,) from every point of
+    ``found`` (N, 2) and from each other: one junction, one label (a point that ends on
+    another is that one)."""
+    if not len(q):
+        return np.zeros(0, dtype=bool)
+    pts = np.concatenate([found, q])
+    d = np.hypot(*(q[:, None] - pts[None]).transpose(2, 0, 1))
+    d[np.arange(len(q)), len(found) + np.arange(len(q))] = np.inf
+    return d.min(axis=1) > tol

@@ -58,12 +58,13 @@ import numpy as np
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._markers import (
+    apart_from_found,
     confirm_markers,
     consistent_points,
     drop_poor_fits,
-    extend_lattice,
     find_markers,
     is_x_corner,
+    lattice_rounds,
     narrowest_side,
     neighbour_quads,
     predict_points,
@@ -355,25 +356,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     idx_x, idx_y = np.arange(-3, nx + 3), np.arange(-3, ny + 3)
     xs = (idx_x // 2) * grid.pitch + (idx_x % 2) * T  # the padded lattice's board places
     ys = (idx_y // 2) * grid.pitch + (idx_y % 2) * T
-    tried_with = np.zeros(nx * ny, dtype=np.int64)
-    for _ in range(2 * (nx + ny)):
-        have = np.isfinite(out).all(axis=1)
-        if have.sum() < 3:
-            return
-        P = np.full((ny + 6, nx + 6, 2), np.nan)
-        P[3:-3, 3:-3] = out.reshape(ny, nx, 2)
-        f = np.isfinite(P[..., 0])
-        nb = sum(f[3 + dy:ny + 3 + dy, 3 + dx:nx + 3 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)
-                 if dx or dy).ravel().astype(np.int64)
-        cand = np.flatnonzero(~have & (nb > tried_with))
-        if not len(cand):
-            return
-        tried_with[cand] = nb[cand]
-        X, Y = cand % nx + 3, cand // nx + 3
-        pred, u, v = extend_lattice(P, X, Y, xs, ys)
+    for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         tag_px = np.fmin(np.hypot(*u.T), np.hypot(*v.T)) * T
-        others = np.stack([pred + u * (xs[X + 1] - xs[X])[:, None], pred + u * (xs[X - 1] - xs[X])[:, None],
-                           pred + v * (ys[Y + 1] - ys[Y])[:, None], pred + v * (ys[Y - 1] - ys[Y])[:, None]], axis=1)
         ok = np.isfinite(pred).all(axis=1) & np.isfinite(tag_px) & (tag_px >= 8)
         if not ok.any():
             continue
@@ -385,11 +369,7 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         own = np.hypot(*(q - pred).T)
         theirs = np.hypot(*(q[:, None] - others).transpose(2, 0, 1)).min(axis=1)
         got &= 2.0 * own < theirs
-        # One junction, one label: a point that ends on another found point is that point.
-        pts = np.concatenate([out[have], q[got]])
-        if got.any() and len(pts) > 1:
-            d = np.hypot(*(q[got][:, None] - pts[None]).transpose(2, 0, 1))
-            d[np.arange(got.sum()), have.sum() + np.arange(got.sum())] = np.inf
-            got[got] = d.min(axis=1) > np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got])
+        got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
+                                    np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]

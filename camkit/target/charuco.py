@@ -59,11 +59,12 @@ from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._homography import apply_homographies, apply_homography, fit_homographies
 from camkit.target._markers import (
+    apart_from_found,
     confirm_markers,
     drop_poor_fits,
-    extend_lattice,
     find_markers,
     is_x_corner,
+    lattice_rounds,
     quad_area,
     recover_markers,
     refine_patches,
@@ -325,12 +326,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * margin, 1.5))
         # One junction, one label: a corner that ends on another found corner (or on another
         # candidate's) is that corner, not this one.
-        have = out[np.isfinite(out).all(axis=1)]
-        pts = np.concatenate([have, q[ok]])
-        if len(pts) > 1 and ok.any():
-            d = np.hypot(*(q[ok][:, None] - pts[None]).transpose(2, 0, 1))
-            d[np.arange(ok.sum()), len(have) + np.arange(ok.sum())] = np.inf
-            ok[ok] = d.min(axis=1) > np.maximum(1.5 * factor, 0.25 * size[k][ok])
+        ok[ok] = apart_from_found(q[ok], out[np.isfinite(out).all(axis=1)], np.maximum(1.5 * factor,
+                                                                                      0.25 * size[k][ok]))
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
         kept[k[ok]] = True
@@ -346,27 +343,11 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
     or blurred to read, the squares still carry the corners' labels from those read."""
     nx, ny = board.squares_x - 1, board.squares_y - 1
     H, W = full.shape
-    tried_with = np.zeros(nx * ny, dtype=np.int64)
     s = board.square
     xs, ys = s * np.arange(-2, nx + 4), s * np.arange(-2, ny + 4)  # the padded lattice's board places
-    for _ in range(2 * (nx + ny)):
-        have = np.isfinite(out).all(axis=1)
-        if have.sum() < 3:
-            return
-        P = np.full((ny + 6, nx + 6, 2), np.nan)
-        P[3:-3, 3:-3] = out.reshape(ny, nx, 2)
-        # Found neighbours of each corner, the eight around it.
-        f = np.isfinite(P[..., 0])
-        nb = sum(f[3 + dy:ny + 3 + dy, 3 + dx:nx + 3 + dx] for dy in (-1, 0, 1) for dx in (-1, 0, 1)
-                 if dx or dy).ravel().astype(np.int64)
-        cand = np.flatnonzero(~have & (nb > tried_with))
-        if not len(cand):
-            return
-        tried_with[cand] = nb[cand]
-        pred, u, v = extend_lattice(P, cand % nx + 3, cand // nx + 3, xs, ys)
+    for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
-        others = np.stack([pred + u, pred - u, pred + v, pred - v], axis=1)
         # The coarse search's window and reach inside the image (its edges replicated beyond
         # would make a saddle there).
         edge = 0.35 * size + 2
