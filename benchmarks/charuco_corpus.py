@@ -99,10 +99,7 @@ def eligible(board: Charuco, camera, pose, truth) -> np.ndarray:
 def readable(board, camera, pose) -> bool:
     """Whether a marker of the view, wholly in the frame, has cells of 2 px or more across its
     narrowest side (the detector's least; at 1-2 px a cell no reader tells the bits apart, and
-    a view without such a marker gives no label to start from). Other targets: True (the
-    AprilGrid corpus counts only tags of 2 px a cell or more)."""
-    if not isinstance(board, Charuco):
-        return True
+    a view without such a marker gives no label to start from)."""
     mc = board.marker_corners()
     q = camera.project(pose.apply(mc.reshape(-1, 3))).reshape(len(mc), 4, 2)
     W, H = camera.width, camera.height
@@ -152,7 +149,7 @@ def score(views: int, start: int, make_view: Callable, is_eligible: Callable, op
         el = is_eligible(board, camera, pose, truth)
         stats["eligible"] += int(el.sum())
         stats["eligible found"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
-        if readable(board, camera, pose):
+        if isinstance(board, Charuco) and readable(board, camera, pose):
             stats["eligible, views with a readable marker"] += int(el.sum())
             stats["eligible found, views with a readable marker"] += int(np.isin(np.flatnonzero(el), det.ids).sum())
         ci, cc = opencv(board, img)
@@ -165,8 +162,9 @@ def score(views: int, start: int, make_view: Callable, is_eligible: Callable, op
         ck_err.extend(np.hypot(*(det.corners[ci[both]] - truth.corners_px[ci[both]]).T).tolist())
     out = dict(stats)
     out["found %"] = 100.0 * stats["eligible found"] / max(stats["eligible"], 1)
-    out["found %, views with a readable marker"] = (100.0 * stats["eligible found, views with a readable marker"]
-                                                    / max(stats["eligible, views with a readable marker"], 1))
+    if stats["eligible, views with a readable marker"]:
+        out["found %, views with a readable marker"] = (100.0 * stats["eligible found, views with a readable marker"]
+                                                        / stats["eligible, views with a readable marker"])
     out["error median noise-free px"] = float(np.median(err_clean)) if err_clean else float("nan")
     out["error 95th noisy px"] = float(np.percentile(err_noisy, 95)) if err_noisy else float("nan")
     out["camkit median on ids both find"] = float(np.median(ck_err)) if ck_err else float("nan")

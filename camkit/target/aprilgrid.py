@@ -371,5 +371,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
+        read = np.isfinite(sig)
+        if read.any():  # no code vouches for a grown point: it must fit as well as most
+            got &= tsig[cand] <= 1.5 * np.median(sig[read])
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
