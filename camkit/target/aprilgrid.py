@@ -40,8 +40,8 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    of tags not read (too small, blurred, or bent by a lens past reading through their four
    corners) are reached from those found, junction by junction (completing a rectangle of
    three found points, else continuing a row or column), each kept within a quarter of a
-   corner square of its prediction, nearer it than its neighbours' places, and on no other
-   point;
+   corner square of its prediction, nearer it than its neighbours' places, on no other point,
+   and with a sigma at most 1.5 times the median of those found before;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
@@ -348,8 +348,9 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     each predicted from the points found beside it on the grid (:func:`extend_lattice`), fitted
     and tested as :func:`_refine` does, and kept where it ends twice as near its own predicted
     place as its neighbours' along the grid's rows and columns, within :data:`_GROWN_REACH` of a
-    corner square of it (0.45 for a tag's own corners), and on no other found point. A
-    point is tried again only once more of its neighbours are found. The check of every point
+    corner square of it (0.45 for a tag's own corners), on no other found point, and with a
+    fit's sigma at most 1.5 times the median of the points found before it (no code vouches
+    for it). A point is tried again only once more of its neighbours are found. The check of every point
     against its neighbours that follows (:func:`consistent_points`) covers these too."""
     nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
     T = grid.tag_size
