@@ -4,10 +4,10 @@ homographies of the markers' small point sets."""
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
+
+from camkit._kernels.calib import dlt_normal
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -213,68 +213,21 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     return stats, quads
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def _norm(p: np.ndarray, k: int, T: np.ndarray) -> bool:  # pragma: no cover - numba
-    """Hartley's normalisation of point set ``p[k]`` (P, 2): ``T`` = (scale, cx, cy), the
-    scale taking the mean distance from the centroid to sqrt(2); False where the points
-    coincide."""
-    P = p.shape[1]
-    cx = 0.0
-    cy = 0.0
-    for i in range(P):
-        cx += p[k, i, 0]
-        cy += p[k, i, 1]
-    cx /= P
-    cy /= P
-    d = 0.0
-    for i in range(P):
-        d += math.hypot(p[k, i, 0] - cx, p[k, i, 1] - cy)
-    d /= P
-    if not d > 1e-12:
-        return False
-    T[0] = math.sqrt(2.0) / d
-    T[1] = cx
-    T[2] = cy
-    return True
-
-
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """``out[k]`` (3, 3): the homography taking ``src[k]`` (P, 2) to ``dst[k]`` (P, 2), P >= 4,
-    by the normalised DLT (Hartley and Zisserman, alg. 4.2) in its inhomogeneous form (h33 = 1
-    in the normalised frames, where the source centroid is the origin and maps to a finite
-    point): least squares of the 2P linear equations through their 8 x 8 normal equations,
-    Gaussian elimination with partial pivoting; NaN where the points coincide or the system
-    is singular (collinear points)."""
+    by the normalised DLT (Hartley and Zisserman, alg. 4.2; the normal matrix from
+    :func:`camkit._kernels.calib.dlt_normal`) in its inhomogeneous form: h33 = 1 in the
+    normalised frames (the source centroid is their origin and maps to a finite point), the
+    other eight from the 8 x 8 normal equations by Gaussian elimination with partial
+    pivoting; NaN where the points coincide or the system is singular (collinear points)."""
     K, P = src.shape[0], src.shape[1]
     for k in prange(K):
-        Ts = np.empty(3)
-        Td = np.empty(3)
-        if not (_norm(src, k, Ts) and _norm(dst, k, Td)):
+        M, Ts, Td, ok = dlt_normal(src[k], dst[k])
+        if not ok:
             out[k, :, :] = np.nan
             continue
-        M = np.zeros((8, 9))  # [A^T A | A^T b]
-        row = np.empty(9)
-        for i in range(P):
-            x = (src[k, i, 0] - Ts[1]) * Ts[0]
-            y = (src[k, i, 1] - Ts[2]) * Ts[0]
-            u = (dst[k, i, 0] - Td[1]) * Td[0]
-            v = (dst[k, i, 1] - Td[2]) * Td[0]
-            for e in range(2):
-                row[:] = 0.0
-                if e == 0:  # h11 x + h12 y + h13 - u (h31 x + h32 y) = u
-                    row[0], row[1], row[2] = x, y, 1.0
-                    row[6], row[7], row[8] = -u * x, -u * y, u
-                else:  # h21 x + h22 y + h23 - v (h31 x + h32 y) = v
-                    row[3], row[4], row[5] = x, y, 1.0
-                    row[6], row[7], row[8] = -v * x, -v * y, v
-                for a in range(8):
-                    ra = row[a]
-                    if ra != 0.0:
-                        for b in range(9):
-                            M[a, b] += ra * row[b]
-        ok = True
-        for c in range(8):  # elimination with partial pivoting
+        for c in range(8):  # elimination with partial pivoting on [M[:8, :8] | -M[:8, 8]]
             piv = c
             for r in range(c + 1, 8):
                 if abs(M[r, c]) > abs(M[piv, c]):
@@ -283,36 +236,31 @@ def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:
                 ok = False
                 break
             if piv != c:
-                for b in range(9):
-                    M[c, b], M[piv, b] = M[piv, b], M[c, b]
+                for j in range(9):
+                    M[c, j], M[piv, j] = M[piv, j], M[c, j]
             for r in range(c + 1, 8):
                 f = M[r, c] / M[c, c]
                 if f != 0.0:
-                    for b in range(c, 9):
-                        M[r, b] -= f * M[c, b]
+                    for j in range(c, 9):
+                        M[r, j] -= f * M[c, j]
         if not ok:
             out[k, :, :] = np.nan
             continue
         h = np.empty(9)
         h[8] = 1.0
         for c in range(7, -1, -1):
-            acc = M[c, 8]
-            for b in range(c + 1, 8):
-                acc -= M[c, b] * h[b]
+            acc = -M[c, 8]
+            for j in range(c + 1, 8):
+                acc -= M[c, j] * h[j]
             h[c] = acc / M[c, c]
-        # H = Td^-1 Hn Ts, Ts = [[s, 0, -s cx], [0, s, -s cy], [0, 0, 1]], Td^-1 likewise inverted.
-        s, cx, cy = Ts[0], Ts[1], Ts[2]
-        t, dx, dy = Td[0], Td[1], Td[2]
-        for r in range(3):
-            a0, a1, a2 = h[3 * r], h[3 * r + 1], h[3 * r + 2]
-            h[3 * r] = a0 * s
-            h[3 * r + 1] = a1 * s
-            h[3 * r + 2] = a2 - a0 * s * cx - a1 * s * cy
+        # H = Td^-1 Hn Ts; Td = [[t, 0, -t dx], [0, t, -t dy], [0, 0, 1]] inverts in closed form.
+        Hn = h.reshape(3, 3) @ Ts
+        t = Td[0, 0]
+        dx, dy = -Td[0, 2] / t, -Td[1, 2] / t
         for c in range(3):
-            g0, g1, g2 = h[c], h[3 + c], h[6 + c]
-            out[k, 0, c] = g0 / t + dx * g2
-            out[k, 1, c] = g1 / t + dy * g2
-            out[k, 2, c] = g2
+            out[k, 0, c] = Hn[0, c] / t + dx * Hn[2, c]
+            out[k, 1, c] = Hn[1, c] / t + dy * Hn[2, c]
+            out[k, 2, c] = Hn[2, c]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -452,8 +452,8 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
             return quads
 
 
-def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray, ys: np.ndarray,
-                   rules: int = 3) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray,
+                   ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Where a board's lattice of points puts the places ``(X, Y)`` (column and row indices),
     and its steps there along the board's x (``u``) and y (``v``) per unit of the board frame,
     each (K, 2), NaN where unknown. ``P`` (rows, columns, 2): the points found, NaN where not,
@@ -495,7 +495,7 @@ def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray, 
             return np.where(n[:, None] > 0, np.nansum(v, axis=0) / np.maximum(n, 1)[:, None], np.nan)
 
     pred = mean(par)
-    for more in (quad, lin)[:rules - 1]:
+    for more in (quad, lin):
         pred = np.where(np.isfinite(pred), pred, mean(more))
     return pred, mean(us), mean(vs)
 

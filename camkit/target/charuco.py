@@ -286,19 +286,18 @@ _REACH = 0.15
 
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
-                   others: np.ndarray) -> np.ndarray:
+                   others: np.ndarray) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
     :data:`_REACH` of a square in all, and are X-junctions on a circle inside the white
-    margin; which were kept. The coarser saddle (on ``level``, the image the markers were read
+    margin. The coarser saddle (on ``level``, the image the markers were read
     on, ``factor`` times smaller: a window and smoothing of a fifth and a twelfth of the
     square, as many steps as the reach takes) finds a corner that the corners beside it
     predict a few pixels off, as through a fisheye's rim. ``others`` (K, 4, 2): the places
     of each corner's neighbours along the board's rows and columns as predicted with it; a
     corner must end at least twice as near its own place as any of theirs (a neighbour's
     junction is not taken for it)."""
-    kept = np.zeros(len(cand), dtype=bool)
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     rc = np.clip(np.round(size_l / 5.0), 2, 25).astype(int)
@@ -330,8 +329,6 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
                                                                                       0.25 * size[k][ok]))
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
-        kept[k[ok]] = True
-    return kept
 
 
 def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
