@@ -72,7 +72,7 @@ from camkit.target._markers import (
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
-from camkit.target.checkerboard import _to_grey
+from camkit.target.checkerboard import _sample, _to_grey
 
 __all__ = ["Charuco"]
 
@@ -268,7 +268,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
-    # the found corners around them, kept where they pass the same tests.
+    # the found corners around them, kept where they pass the same tests. Poor fits go first,
+    # so that none seeds the growth.
+    drop_poor_fits(out, sig)
     _grow(board, full, level, factor, out, sig)
     drop_poor_fits(out, sig)
     n_found = int(np.isfinite(out).all(axis=1).sum())
@@ -284,9 +286,36 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
 _REACH = 0.15
 
 
+def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
+                  v: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Which corners ``cand`` placed at ``q`` (K, 2) have their board's two black squares where
+    the lattice's steps ``u``, ``v`` (pixels per square along the board's x and y, (K, 2)) put
+    them: nine points of each, a fifth to a half of a square from the corner along each step
+    (near enough for the lattice's local steps to hold through a fisheye), all darker than
+    the middle of the shades on the X-test's circle (radius ``rho``). A black square is one
+    shade throughout; a junction of a marker's bits, or the next corner along a row or column
+    (whose black squares are this one's marker squares), is not."""
+    nx = board.squares_x - 1
+    cx, cy = cand % nx + 1, cand // nx + 1
+    ms = board.marker_squares()
+    # The square (cx, cy) lies on the corner's (+u, +v) side; black where it holds no marker.
+    white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
+    white[ms[:, 1], ms[:, 0]] = True
+    sign = np.where(white[cy, cx], -1.0, 1.0)
+    f = np.array([0.2, 0.35, 0.5])
+    a, b = (g.ravel() for g in np.meshgrid(f, f))
+    a = np.concatenate([a, -a])  # (18,): the (+, +) square's points, then the (-, -) square's
+    b = np.concatenate([b, -b])
+    pts = q[:, None] + a[None, :, None] * u[:, None] + (sign[:, None] * b[None])[..., None] * v[:, None]
+    dark = _sample(grey, pts[..., 0], pts[..., 1], "bilinear")
+    ang = np.arange(32) * 2 * np.pi / 32
+    ring = _sample(grey, q[:, :1] + rho[:, None] * np.cos(ang), q[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
+    return dark.max(axis=1) < 0.5 * (ring.min(axis=1) + ring.max(axis=1))
+
+
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
-                   others: np.ndarray) -> None:
+                   others: np.ndarray, u: np.ndarray, v: np.ndarray, sig_cap: float) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
@@ -297,7 +326,9 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     predict a few pixels off, as through a fisheye's rim. ``others`` (K, 4, 2): the places
     of each corner's neighbours along the board's rows and columns as predicted with it; a
     corner must end at least twice as near its own place as any of theirs (a neighbour's
-    junction is not taken for it)."""
+    junction is not taken for it). Its two black squares must be dark where ``u``, ``v`` (a
+    square's steps along the board's x and y) put them (:func:`_dark_squares`), and its
+    fit's sigma at most ``sig_cap``."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     rc = np.clip(np.round(size_l / 5.0), 2, 25).astype(int)
@@ -320,9 +351,12 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         moved[own > _REACH * size[k]] = np.inf
         theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
         moved[~(2.0 * own < theirs)] = np.inf
-        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
+        ok = np.isfinite(moved) & (sg <= sig_cap) & (moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
-        ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * margin, 1.5))
+        rho = np.maximum(0.6 * margin, 1.5)
+        x = is_x_corner(full, q[ok], rho)
+        x[x] = _dark_squares(board, full, cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x], rho[x])
+        ok[ok] = x
         # One junction, one label: a corner that ends on another found corner (or on another
         # candidate's) is that corner, not this one.
         ok[ok] = apart_from_found(q[ok], out[np.isfinite(out).all(axis=1)], np.maximum(1.5 * factor,
@@ -342,6 +376,12 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
     H, W = full.shape
     s = board.square
     xs, ys = s * np.arange(-2, nx + 4), s * np.arange(-2, ny + 4)  # the padded lattice's board places
+    have = np.isfinite(sig)
+    if not have.any():
+        return
+    # A grown corner's fit is no poorer than the final test (drop_poor_fits) allows: one that
+    # is would seed the next round's predictions before that test removed it.
+    sig_cap = 2.0 * float(np.median(sig[have]))
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
@@ -353,4 +393,4 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
-                       others[inside])
+                       others[inside], u[inside], v[inside], sig_cap)

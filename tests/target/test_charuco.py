@@ -16,6 +16,8 @@ from camkit.lens import BrownConrady, KannalaBrandt
 from camkit.render import render_target
 from camkit.target import Charuco
 from camkit.target.base import Sheet
+from camkit.target.charuco import _dark_squares
+from camkit.target.checkerboard import _to_grey
 
 
 def _cv_board(b: Charuco):
@@ -125,6 +127,27 @@ def test_corners_past_the_markers_read_are_found_with_their_labels():
     assert det.n_found == b.n_points, det.message
     err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
     assert err.max() < 0.05, err.max()
+
+
+def test_a_grown_corner_needs_its_black_squares_where_the_lattice_puts_them():
+    """The growth's colour test, on a render with the true corners and steps: at a corner under
+    its own label both black squares are dark; under the next corner's label along its row
+    (the same junction, the other colouring), or at a marker's centre, they are not."""
+    b = Charuco(7, 5, 0.03, 0.022, "DICT_4X4_50")
+    img, truth = render_target(CAM, _view(b, CAM, [0.3, -0.2, 0.1]), b)
+    g = _to_grey(img)
+    T = truth.corners_px
+    nx = b.squares_x - 1
+    ids = np.array([c for c in range(nx + 1, b.n_points - nx - 1) if 0 < c % nx < nx - 1])
+    u = (T[ids + 1] - T[ids - 1]) / 2
+    v = (T[ids + nx] - T[ids - nx]) / 2
+    rho = np.full(len(ids), 1.5)
+    assert _dark_squares(b, g, ids, T[ids], u, v, rho).all()
+    assert not _dark_squares(b, g, ids + 1, T[ids], u, v, rho).any()
+    centres = T[ids] + 0.5 * (u + v)  # the centre of square (cx, cy): a marker where it holds one
+    marker = (ids // nx + ids % nx) % 2 == 1  # cx + cy odd: square (cx, cy) holds a marker
+    assert marker.any() and not _dark_squares(b, g, ids[marker], centres[marker], u[marker], v[marker],
+                                              rho[marker]).any()
 
 
 def test_opencv_tutorial_photos(shared_data):
