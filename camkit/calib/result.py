@@ -159,6 +159,19 @@ def assemble_result(cam: CameraModel, objs: list[np.ndarray], imgs: list[np.ndar
     Xc = stacked_points([objs[i] for i in views], [poses[i] for i in views])
     used = np.concatenate(mask)
     res = cam.project(Xc) - np.concatenate([imgs[i] for i in views])
+    # A corner the fitted model cannot project (beyond the radius where its distortion folds
+    # back) has no residual: it is listed as rejected with that reason, and the message says
+    # the model does not fit these views, rather than an RMS of NaN.
+    lost = used & ~np.isfinite(res).all(axis=1)
+    message = report.message
+    if lost.any():
+        first = np.concatenate([[0], np.cumsum(counts)[:-1]])
+        rejected = rejected + [(views[int(view[j])], int(j - first[view[j]]),
+                                "the fitted lens model does not reach this point (its distortion folds back "
+                                "before this radius)") for j in np.flatnonzero(lost)]
+        used = used & ~lost
+        message = (f"{message}; {int(lost.sum())} corners lie beyond the radius where the fitted distortion folds "
+                   f"back: the model does not fit these views (try another lens model, or check the views)")
     res[~used] = np.nan
     residuals = [np.full_like(imgs[i], np.nan) for i in range(len(imgs))]
     for i, r in zip(views, np.split(res, np.cumsum(counts)[:-1]), strict=True):
@@ -179,4 +192,4 @@ def assemble_result(cam: CameraModel, objs: list[np.ndarray], imgs: list[np.ndar
         residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
         stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,
         view_indices=tuple(views), rejected_views=rejected_views, object_points=objs, image_points=imgs,
-        converged=report.converged, iterations=iterations, cost=report.cost, message=report.message)
+        converged=report.converged, iterations=iterations, cost=report.cost, message=message)

@@ -237,3 +237,22 @@ def test_rms_is_opencvs():
     # and the per-view figure uses the same definition: the mean square over views, weighted by
     # corners, is the overall square
     assert np.sqrt(np.mean(np.asarray(res.view_rms_px) ** 2)) == pytest.approx(res.rms_px, rel=1e-12)
+
+
+def test_corners_the_fitted_distortion_cannot_reach_are_named_not_nan(shared_data):
+    """PlantCV's wide-angle set (OpenCV's own reference corners) does not fit a Brown-Conrady
+    camera (OpenCV's calibrateCamera leaves 13 px RMS). The fitted polynomial folds back
+    before the image's corner, so the model cannot project some corners: they are listed as
+    rejected with that reason and the message says so, rather than an RMS of NaN."""
+    import json
+
+    ref = json.loads((shared_data / "real_boards" / "plantcv_wide" / "reference.json").read_text())
+    cols, rows = ref["pattern"]
+    obj = Checkerboard(cols, rows, 0.03).object_points()
+    imgs = [np.asarray(v["corners"], dtype=float) for v in ref["images"] if v["found"]]
+    res = calibrate([obj] * len(imgs), imgs, width=2880, height=1920)
+    folded = [r for r in res.rejected if "folds back" in r[2]]
+    assert folded and "folds back" in res.message
+    assert np.isfinite(res.rms_px) and np.isfinite(res.view_rms_px).all()
+    for v, c, _ in folded:
+        assert np.isnan(res.residuals[res.view_indices.index(v)][c]).all()
