@@ -45,13 +45,19 @@ def is_x_corner(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> np.ndarra
     crosses its mean four times, with contrast, and is point-symmetric (opposite quadrants
     alike), as step 1 of the checkerboard detector asks; a marker's own corner or a junction
     of its bits is not."""
+    return x_corner_shades(grey, pts, rho)[0]
+
+
+def x_corner_shades(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`is_x_corner`, and the middle of the darkest and brightest shades on each circle."""
     ang = np.arange(32) * 2 * np.pi / 32
     v = _sample(grey, pts[:, :1] + rho[:, None] * np.cos(ang), pts[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
     sign = v > v.mean(axis=1, keepdims=True)
     changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
-    contrast = v.max(axis=1) - v.min(axis=1)
+    lo, hi = v.min(axis=1), v.max(axis=1)
+    contrast = hi - lo
     sym = np.abs(v - np.roll(v, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
-    return (changes == 4) & (contrast > 0.15) & (sym < 0.25)
+    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), 0.5 * (lo + hi)
 
 
 def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,

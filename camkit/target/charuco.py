@@ -69,6 +69,7 @@ from camkit.target._markers import (
     recover_markers,
     refine_patches,
     unconfirmed_reason,
+    x_corner_shades,
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
@@ -287,14 +288,14 @@ _REACH = 0.15
 
 
 def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
-                  v: np.ndarray, rho: np.ndarray) -> np.ndarray:
+                  v: np.ndarray, mid: np.ndarray) -> np.ndarray:
     """Which corners ``cand`` placed at ``q`` (K, 2) have their board's two black squares where
     the lattice's steps ``u``, ``v`` (pixels per square along the board's x and y, (K, 2)) put
     them: nine points of each, a fifth to a half of a square from the corner along each step
     (near enough for the lattice's local steps to hold through a fisheye), all darker than
-    the middle of the shades on the X-test's circle (radius ``rho``). A black square is one
-    shade throughout; a junction of a marker's bits, or the next corner along a row or column
-    (whose black squares are this one's marker squares), is not."""
+    ``mid`` (K,), the middle of the shades on the X-test's circle (:func:`x_corner_shades`).
+    A black square is one shade throughout; a junction of a marker's bits, or the next corner
+    along a row or column (whose black squares are this one's marker squares), is not."""
     nx = board.squares_x - 1
     cx, cy = cand % nx + 1, cand // nx + 1
     ms = board.marker_squares()
@@ -308,9 +309,7 @@ def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndar
     b = np.concatenate([b, -b])
     pts = q[:, None] + a[None, :, None] * u[:, None] + (sign[:, None] * b[None])[..., None] * v[:, None]
     dark = _sample(grey, pts[..., 0], pts[..., 1], "bilinear")
-    ang = np.arange(32) * 2 * np.pi / 32
-    ring = _sample(grey, q[:, :1] + rho[:, None] * np.cos(ang), q[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
-    return dark.max(axis=1) < 0.5 * (ring.min(axis=1) + ring.max(axis=1))
+    return dark.max(axis=1) < mid
 
 
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
@@ -354,8 +353,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         ok = np.isfinite(moved) & (sg <= sig_cap) & (moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
         rho = np.maximum(0.6 * margin, 1.5)
-        x = is_x_corner(full, q[ok], rho)
-        x[x] = _dark_squares(board, full, cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x], rho[x])
+        x, mid = x_corner_shades(full, q[ok], rho)
+        x[x] = _dark_squares(board, full, cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x], mid[x])
         ok[ok] = x
         # One junction, one label: a corner that ends on another found corner (or on another
         # candidate's) is that corner, not this one.

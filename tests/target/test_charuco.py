@@ -15,6 +15,7 @@ from camkit.io import read_image
 from camkit.lens import BrownConrady, KannalaBrandt
 from camkit.render import render_target
 from camkit.target import Charuco
+from camkit.target._markers import x_corner_shades
 from camkit.target.base import Sheet
 from camkit.target.charuco import _dark_squares
 from camkit.target.checkerboard import _to_grey
@@ -141,13 +142,14 @@ def test_a_grown_corner_needs_its_black_squares_where_the_lattice_puts_them():
     ids = np.array([c for c in range(nx + 1, b.n_points - nx - 1) if 0 < c % nx < nx - 1])
     u = (T[ids + 1] - T[ids - 1]) / 2
     v = (T[ids + nx] - T[ids - nx]) / 2
-    rho = np.full(len(ids), 1.5)
-    assert _dark_squares(b, g, ids, T[ids], u, v, rho).all()
-    assert not _dark_squares(b, g, ids + 1, T[ids], u, v, rho).any()
+    x, mid = x_corner_shades(g, T[ids], np.full(len(ids), 1.5))
+    assert x.all()
+    assert _dark_squares(b, g, ids, T[ids], u, v, mid).all()
+    assert not _dark_squares(b, g, ids + 1, T[ids], u, v, mid).any()
     centres = T[ids] + 0.5 * (u + v)  # the centre of square (cx, cy): a marker where it holds one
     marker = (ids // nx + ids % nx) % 2 == 1  # cx + cy odd: square (cx, cy) holds a marker
     assert marker.any() and not _dark_squares(b, g, ids[marker], centres[marker], u[marker], v[marker],
-                                              rho[marker]).any()
+                                              mid[marker]).any()
 
 
 def test_opencv_tutorial_photos(shared_data):
