@@ -338,7 +338,6 @@ def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
     return float(np.median(s)) if s.size else 0.0
 
 
-
 #: How far (in corner squares) a point grown past the tags read may move from its prediction.
 _GROWN_REACH = 0.25
 
