@@ -41,8 +41,9 @@ class Detection:
         Pixel positions in the order of ``target.object_points()`` (row ``i`` is point id
         ``i``); NaN rows for points not seen (covered, outside the image, not checked).
     sigma_px : ndarray, (N,)
-        Per-point standard deviation of the position from the sub-pixel fit (NaN where not
-        seen).
+        Per-point standard deviation of the position, per axis (NaN where not seen): from the
+        sub-pixel fit, and for the checkerboard the larger of that and what the image's
+        measured noise leaves (see :func:`camkit.target.detect_corners`, step 8).
     window_px : int
         Half-size of the sub-pixel window chosen for this image (0 where none was).
     message : str

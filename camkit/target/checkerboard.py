@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 from typing import Self
 
@@ -370,6 +371,12 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        with the smoothing and window scaled by the factor (smoothing only patches around the
        corners), and the level that labels the most corners wins (the finest on a tie).
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
+    8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
+       image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
+       in the band the fit sees, through each corner's own fit). A corner whose sigma passes a
+       quarter of a pixel is dropped (it could lie a pixel off: a board too dim for its
+       noise); where fewer than four are left the board is not found, and the message says
+       why.
 
     Corners not seen (fingers over them, outside the image, failing the check) are NaN rows.
     Grey, RGB(A) and 16-bit images are accepted. An image without a board gives
@@ -380,7 +387,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     grey = _to_grey(image)
     best = _detect(grey, board)
     level = grey
-    factor = 1
+    factor = best_factor = 1
     n_corners = board.inner_cols * board.inner_rows
     while (best.n_found < n_corners and min(level.shape) >= 2 * _MIN_PYRAMID_SIDE
            and (not best.found or _corner_spacing(best.corners, board) >= _COARSER_FROM_PX * factor)):
@@ -393,8 +400,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
         if coarse.found:
             full = _refine_full(grey, coarse, factor, board)
             if full.found and (not best.found or full.n_found > best.n_found):
-                best = full
-    return best
+                best, best_factor = full, factor
+    return _drop_noisy(grey, best, board, best_factor) if best.found else best
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -434,19 +441,10 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     if not np.isfinite(spacing):
         spacing = 11.0 * factor
     r = int(np.clip(round(spacing / _SPACING_PER_WINDOW), 2, 5 * factor))
-    # The smoothing scaled by the factor, computed only on a patch around each corner (the
-    # patches side by side in one mosaic): enough for the fit's window, its bicubic support and
-    # the fit's moves (at most a pixel each of six iterations).
-    half = r + 9
-    side = 2 * half + 1
-    n_seen = int(seen.sum())
-    per_row = max(1, int(np.ceil(np.sqrt(n_seen))))
-    origin = np.floor(c[seen]).astype(np.int64) - half
-    tile = np.stack([np.arange(n_seen) % per_row, np.arange(n_seen) // per_row], axis=-1) * side
-    mosaic = np.zeros((side * ((n_seen + per_row - 1) // per_row), side * per_row))
-    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, _SIGMA * factor,
-                                mosaic)
-    shift = tile - origin
+    # The smoothing scaled by the factor, computed only on a patch around each corner: enough
+    # for the fit's window, its bicubic support and the fit's moves (at most a pixel each of
+    # six iterations).
+    mosaic, shift = _smoothed_patches(grey, c[seen], r + 9, _SIGMA * factor)
     refined, sig = _saddle_fit(mosaic, c[seen] + shift, r)
     refined -= shift
     out = np.full_like(c, np.nan)
@@ -468,6 +466,155 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
                                            "the checks at full resolution", r)
     return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
                            f"refined at full resolution (window {r} px)")
+
+
+def _smoothed_patches(grey: np.ndarray, pts: np.ndarray, half: int, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The image smoothed (Gaussian, ``smoothing`` px) on a square of ``2 half + 1`` pixels
+    around each point only, the squares side by side in one mosaic. Returns (mosaic, shift):
+    a point ``p`` of the image is at ``p + shift[i]`` in point i's square of the mosaic."""
+    side = 2 * half + 1
+    n = len(pts)
+    per_row = max(1, int(np.ceil(np.sqrt(n))))
+    origin = np.floor(pts).astype(np.int64) - half
+    tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
+    mosaic = np.zeros((side * max(1, (n + per_row - 1) // per_row), side * per_row))
+    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, smoothing,
+                                mosaic)
+    return mosaic, (tile - origin).astype(np.float64)
+
+
+#: A corner whose position the image's noise leaves more uncertain than this (one-sigma per
+#: axis, px) is dropped. Under Gaussian errors it lies more than a pixel from where it is
+#: returned with a chance of exp(-1 / (2 sigma^2)): 0.03 % at a quarter of a pixel, 1 % at a
+#: third. The margin covers the noise read low (JPEG keeps more of it beside edges than in
+#: the flat middles where it is measured: up to about twice).
+_MAX_CORNER_SIGMA = 0.25
+#: The fewest light squares whose middles give the noise (fewer: no estimate from the noise).
+_MIN_NOISE_SQUARES = 4
+
+
+def _square_middles(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The middle of every square with its four corners known, the board's outer squares
+    included (their outer corners continued one step from the two lines inside), and the
+    distance from each middle to the nearest of its square's sides. Returns ((M, 2), (M,))."""
+    G = np.full((rows + 2, cols + 2, 2), np.nan)
+    G[1:-1, 1:-1] = corners.reshape(rows, cols, 2)
+    G[0, 1:-1] = 2 * G[1, 1:-1] - G[2, 1:-1]
+    G[-1, 1:-1] = 2 * G[-2, 1:-1] - G[-3, 1:-1]
+    G[:, 0] = 2 * G[:, 1] - G[:, 2]
+    G[:, -1] = 2 * G[:, -2] - G[:, -3]
+    ring = np.stack([G[:-1, :-1], G[:-1, 1:], G[1:, 1:], G[1:, :-1]], axis=2).reshape(-1, 4, 2)
+    ring = ring[np.isfinite(ring).all(axis=(1, 2))]
+    mid = ring.mean(axis=1)
+    a, b = ring, np.roll(ring, -1, axis=1)
+    e = b - a
+    w = mid[:, None] - a
+    with np.errstate(divide="ignore", invalid="ignore"):
+        dist = np.abs(e[..., 0] * w[..., 1] - e[..., 1] * w[..., 0]) / np.hypot(e[..., 0], e[..., 1])
+    return mid, np.nan_to_num(dist, nan=0.0).min(axis=1) if len(mid) else np.zeros(0)
+
+
+@functools.lru_cache(maxsize=64)
+def _fit_noise_factors(r: int, smoothing: float) -> tuple[float, tuple[float, float]]:
+    """For unit white noise smoothed by a Gaussian of ``smoothing`` px (correlation K between
+    pixels d apart: exp(-d^2 / (4 s^2)) / (4 pi s^2)) and the quadratic fitted on a
+    (2r+1)^2 window (design A, fit P = (A^T A)^-1 A^T): the residuals' mean square,
+    tr(R K R^T) / n = (tr K - tr((A^T A)^-1 A^T K A)) / n (R = I - A P is a symmetric
+    projector), and the variances of the two gradient terms, the 33 and 44 entries of
+    P K P^T = (A^T A)^-1 A^T K A (A^T A)^-1. K is separable and the design's columns are
+    products of powers of x and y, so A^T K A comes from the 1-D kernel alone (no n x n
+    matrix)."""
+    t = np.arange(-r, r + 1, dtype=np.float64)
+    k1 = np.exp(-(t[:, None] - t[None]) ** 2 / (4 * smoothing * smoothing))
+    powers = [(2, 0), (1, 1), (0, 2), (1, 0), (0, 1), (0, 0)]  # x^i y^j, the columns of A
+    m1 = np.stack([t ** e for e in range(3)])  # 1-D monomials
+    g = m1 @ k1 @ m1.T  # (x^i)^T k1 (x^i')
+    h = m1 @ m1.T
+    AKA = np.array([[g[i, k] * g[j, l] for k, l in powers] for i, j in powers]) / (4 * np.pi * smoothing * smoothing)
+    AtA_inv = np.linalg.inv(np.array([[h[i, k] * h[j, l] for k, l in powers] for i, j in powers]))
+    n = len(t) ** 2
+    resid = (n / (4 * np.pi * smoothing * smoothing) - float(np.trace(AtA_inv @ AKA))) / n
+    PKP = AtA_inv @ AKA @ AtA_inv
+    return float(resid), (float(PKP[3, 3]), float(PKP[4, 4]))
+
+def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r: int,
+                 smoothing: float) -> np.ndarray:
+    """Each corner's one-sigma (per axis, px) from the image's noise, NaN where it has no
+    saddle: what the fit's residuals miss (they take the smoothed noise as independent, and on
+    a dim board under JPEG read tens of times low).
+
+    The noise is measured where the board is flat, in the band the fit sees: the same
+    quadratic on the same window of the image smoothed the same way, at the middles of the
+    light squares (dark ones may be clipped at black) whose sides clear the window by two
+    smoothing sigmas. Each middle's residuals, less the median of its four nearest
+    neighbours' (the squares' edges reach in alike), give a white noise's variance w^2
+    through the smoothing's correlation K: the residuals' mean square is w^2 tr(R K R^T) / n,
+    R the fit's residual operator and n the window's pixels. Middles over four times the
+    median (an occluder, text) do not count. Where fewer than ``_MIN_NOISE_SQUARES`` light
+    middles qualify (small or foreshortened squares), and as a floor, w is the whole image's
+    noise (:func:`_image_noise`, which JPEG's flattened areas and clipped pixels pull low).
+    Then w^2 P K P^T (P the fit) is the variance of the fit's gradient terms, and each
+    corner's Hessian turns it into the saddle point's.
+    """
+    sigma = np.full(len(corners), np.nan)
+    seen = np.isfinite(corners).all(axis=1)
+    if seen.sum() == 0:
+        return sigma
+    mid, clear = _square_middles(corners, cols, rows)
+    h, w = grey.shape[:2]
+    margin = r + 3
+    use = ((clear >= r + 2.0 * smoothing) & (mid[:, 0] >= margin) & (mid[:, 1] >= margin)
+           & (mid[:, 0] <= w - 1 - margin) & (mid[:, 1] <= h - 1 - margin))
+    mid = mid[use]
+    m = len(mid)
+    pts = np.concatenate([mid, corners[seen]])
+    mosaic, shift = _smoothed_patches(grey, pts, r + 3, smoothing)
+    oy, ox = np.mgrid[-r:r + 1, -r:r + 1].astype(np.float64)
+    dx, dy = ox.ravel(), oy.ravel()
+    A = np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
+    P = np.linalg.pinv(A)
+    q = pts + shift
+    vals = _sample(mosaic, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
+    coef = vals @ P.T
+    resid_factor, var_grad = _fit_noise_factors(r, smoothing)
+    white = _image_noise(grey) ** 2
+    light = coef[:m, 5] >= np.median(coef[:m, 5]) if m else np.zeros(0, dtype=bool)
+    if light.sum() > _MIN_NOISE_SQUARES:
+        res = (vals[:m] - coef[:m] @ A.T)[light]
+        ml = mid[light]
+        near = np.argsort(np.hypot(*(ml[:, None] - ml[None]).transpose(2, 0, 1)), axis=1)[:, 1:_MIN_NOISE_SQUARES + 1]
+        res = res - np.median(res[near], axis=1)
+        v = (res * res).mean(axis=1)
+        # The neighbours' median adds about half a neighbour's variance to each middle's.
+        white = max(white, float(v[v <= 4.0 * np.median(v)].mean() / resid_factor / (1.0 + 0.5 / _MIN_NOISE_SQUARES)))
+    var_d, var_e = white * var_grad[0], white * var_grad[1]
+    a, b, cc = coef[m:, 0], coef[m:, 1], coef[m:, 2]
+    det = 4 * a * cc - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):  # a flat fit: no sigma
+        h11, h12, h22 = 2 * cc / det, -b / det, 2 * a / det
+        sigma[seen] = np.sqrt(0.5 * (var_d * (h11 * h11 + h12 * h12) + var_e * (h12 * h12 + h22 * h22)))
+    return sigma
+
+
+def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int) -> Detection:
+    """Step 8 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and the
+    noise's (:func:`_noise_sigma`); corners over ``_MAX_CORNER_SIGMA`` are dropped."""
+    cols, rows = board.inner_cols, board.inner_rows
+    noise = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor)
+    sigma = np.fmax(det.sigma_px, noise)
+    noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
+    if not noisy.any():
+        return Detection(True, det.corners, sigma, det.window_px, det.message)
+    worst = float(sigma[noisy].max())
+    corners = det.corners.copy()
+    corners[noisy] = np.nan
+    sigma[noisy] = np.nan
+    found = int(np.isfinite(corners).all(axis=1).sum())
+    why = (f"the image's noise leaves {int(noisy.sum())} corners more than a quarter of a pixel uncertain "
+           f"(sigma up to {worst:.2f} px: too little contrast for the noise)")
+    if found < 4:
+        return Detection.not_found(len(corners), f"not found: {why}", det.window_px)
+    return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
 
 
 def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
