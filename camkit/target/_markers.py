@@ -286,6 +286,16 @@ def narrowest_side(q: np.ndarray) -> np.ndarray:
     return np.hypot(*np.moveaxis(q - np.roll(q, 1, axis=-2), -1, 0)).min(axis=-1)
 
 
+def narrowest_width(q: np.ndarray) -> np.ndarray:
+    """How narrow each quad ``q`` (..., 4, 2) is: its area over the longer mean of two
+    opposite sides (for a parallelogram, the smaller distance between opposite sides). A
+    quad seen obliquely is sheared: its sides stay long while it is narrow across them."""
+    side = np.hypot(*np.moveaxis(q - np.roll(q, 1, axis=-2), -1, 0))  # side k: corners k-1, k
+    longer = np.maximum(side[..., 0] + side[..., 2], side[..., 1] + side[..., 3]) / 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.abs(quad_area(q)) / longer
+
+
 def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,
                     factor: int) -> tuple[list[int], dict[int, np.ndarray], dict[int, float]]:
     """The board's markers among ``found`` (:func:`find_markers`) that a neighbour confirms.

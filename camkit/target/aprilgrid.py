@@ -32,16 +32,18 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    and confirmed by a neighbour (one homography through both tags' corners);
 3. a confirmed tag's corner that its neighbours put a third of a corner square or more away is
    taken from them, and tags not read are read where their neighbours put them;
-4. each corner at its saddle point (camkit's sub-pixel estimator, the window and the
-   X-junction's circle scaled by the tag's narrowest side: a tilted tag's border and corner
-   squares are narrow across the tilt), with its sigma; a fit that does not converge, moves
-   more than 0.45 of a corner square (the next junction is a square away) or is not an
-   X-junction is dropped, and tried again from the corners found around it; then the points
-   of tags not read (too small, blurred, or bent by a lens past reading through their four
-   corners) are reached from those found, junction by junction (completing a rectangle of
-   three found points, else continuing a row or column), each kept within a quarter of a
-   corner square of its prediction, nearer it than its neighbours' places, on no other point,
-   and with a sigma at most 1.5 times the median of those found before;
+4. each corner at its saddle point (camkit's sub-pixel estimator, the window, its smoothing
+   and the X-junction's circle scaled by how narrow the tag is, its area over its longer
+   sides: a tilted tag's border and corner squares are narrow across the tilt, and a sheared
+   one narrower than its shortest side), with its sigma; a fit that does not converge, whose
+   window does not fit inside the image, moves more than 0.45 of a corner square (the next
+   junction is a square away) or is not an X-junction is dropped, and tried again from the
+   corners found around it; then the points of tags not read (too small, blurred, or bent by
+   a lens past reading through their four corners) are reached from those found, junction by
+   junction (completing a rectangle of three found points, else continuing a row or column),
+   each kept within a quarter of a corner square of its prediction, nearer it than its
+   neighbours' places, on no other point, and with a sigma at most 1.5 times the median of
+   those found before;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
@@ -65,7 +67,7 @@ from camkit.target._markers import (
     find_markers,
     is_x_corner,
     lattice_rounds,
-    narrowest_side,
+    narrowest_width,
     neighbour_quads,
     predict_points,
     quad_area,
@@ -242,10 +244,10 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     tags = sorted(quads)
     ids = grid.tag_point_ids()[tags].ravel()
     pred = np.concatenate([quads[m] for m in tags])
-    # The tag's narrowest side in pixels (a tilted tag is narrow across its tilt, and so are
-    # its border and corner squares): the scale of the window, the X-junction's circle and the
-    # reach of the fit.
-    tag_px = np.repeat(narrowest_side(np.stack([quads[m] for m in tags])), 4)
+    # How narrow the tag is in pixels (a tilted tag is narrow across its tilt, and so are its
+    # border and corner squares; seen obliquely it is sheared, narrower than its shortest
+    # side): the scale of the window, the X-junction's circle and the reach of the fit.
+    tag_px = np.repeat(narrowest_width(np.stack([quads[m] for m in tags])), 4)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
     win = _refine(grid, full, ids, pred, tag_px, factor, out, sig)
@@ -316,10 +318,16 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
     win = np.clip(np.round(clean / 2.5), 2, 5 * factor).astype(int)
     for r in np.unique(win):  # one fit per window size
         k = win == r
-        q, sg = refine_patches(full, pred[k], int(r), 1.5 * factor)
+        # The smoothing follows the window where the junction is narrow (a corner square seen
+        # obliquely: more smoothing than that pulls the saddle towards the tag).
+        q, sg = refine_patches(full, pred[k], int(r), float(np.clip(r / 1.5, 1.5, 1.5 * factor)))
         moved = np.hypot(*(q - pred[k]).T)
         ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, reach * grid.tag_spacing
                                                                           * tag_px[k]))
+        # The window and its bicubic support inside the image (past the edge the smoothing
+        # repeats the last row: a junction cut by the edge is pulled off).
+        m = r + 2
+        ok &= (q[:, 0] >= m) & (q[:, 0] <= W - 1 - m) & (q[:, 1] >= m) & (q[:, 1] <= H - 1 - m)
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
@@ -357,7 +365,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     xs = (idx_x // 2) * grid.pitch + (idx_x % 2) * T  # the padded lattice's board places
     ys = (idx_y // 2) * grid.pitch + (idx_y % 2) * T
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
-        tag_px = np.fmin(np.hypot(*u.T), np.hypot(*v.T)) * T
+        # The lattice cell's narrowest width (its area over its longer side), as a tag's.
+        tag_px = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.fmax(np.hypot(*u.T), np.hypot(*v.T)) * T
         ok = np.isfinite(pred).all(axis=1) & np.isfinite(tag_px) & (tag_px >= 8)
         if not ok.any():
             continue
