@@ -9,11 +9,10 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
 from camkit.target.aruco import ArucoDictionary
-from camkit.target.checkerboard import RawGrey, _half, _saddle_fit, _sample
+from camkit.target.checkerboard import RawGrey, _half, _saddle_fit, _sample, _smoothed_patches
 
 
 def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
@@ -22,20 +21,7 @@ def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
     image smoothed by ``sigma``, the smoothing computed only on a patch around each point (the
     patches side by side in one mosaic): enough for the window, its bicubic support and the
     fit's moves."""
-    half = r + iters + 3
-    side = 2 * half + 1
-    n = len(pts)
-    per_row = max(1, int(np.ceil(np.sqrt(n))))
-    origin = np.floor(pts).astype(np.int64) - half
-    tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
-    mosaic = np.zeros((side * ((n + per_row - 1) // per_row), side * per_row))
-    raw = isinstance(grey, RawGrey)
-    detect_kernels.blur_patches(grey.raw if raw else grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile),
-                                side, sigma, mosaic)
-    if raw:  # the stretch is affine and the blur's taps sum to one
-        mosaic *= grey.a
-        mosaic += grey.b
-    shift = tile - origin
+    mosaic, shift = _smoothed_patches(grey, pts, r + iters + 3, sigma)
     q, sg = _saddle_fit(mosaic, pts + shift, r, iters)
     return q - shift, sg
 

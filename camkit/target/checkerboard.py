@@ -470,16 +470,21 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
 
 def _smoothed_patches(grey: np.ndarray, pts: np.ndarray, half: int, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
     """The image smoothed (Gaussian, ``smoothing`` px) on a square of ``2 half + 1`` pixels
-    around each point only, the squares side by side in one mosaic. Returns (mosaic, shift):
-    a point ``p`` of the image is at ``p + shift[i]`` in point i's square of the mosaic."""
+    around each point only, the squares side by side in one mosaic (a :class:`RawGrey` is
+    stretched after the blur: the stretch is affine and the blur's taps sum to one). Returns
+    (mosaic, shift): a point ``p`` of the image is at ``p + shift[i]`` in point i's square."""
     side = 2 * half + 1
     n = len(pts)
     per_row = max(1, int(np.ceil(np.sqrt(n))))
     origin = np.floor(pts).astype(np.int64) - half
     tile = np.stack([np.arange(n) % per_row, np.arange(n) // per_row], axis=-1) * side
     mosaic = np.zeros((side * max(1, (n + per_row - 1) // per_row), side * per_row))
-    detect_kernels.blur_patches(grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile), side, smoothing,
-                                mosaic)
+    raw = isinstance(grey, RawGrey)
+    detect_kernels.blur_patches(grey.raw if raw else grey, np.ascontiguousarray(origin), np.ascontiguousarray(tile),
+                                side, smoothing, mosaic)
+    if raw:
+        mosaic *= grey.a
+        mosaic += grey.b
     return mosaic, (tile - origin).astype(np.float64)
 
 
