@@ -278,8 +278,8 @@ def narrowest_width(q: np.ndarray) -> np.ndarray:
     quad seen obliquely is sheared: its sides stay long while it is narrow across them."""
     side = np.hypot(*np.moveaxis(q - np.roll(q, 1, axis=-2), -1, 0))  # side k: corners k-1, k
     longer = np.maximum(side[..., 0] + side[..., 2], side[..., 1] + side[..., 3]) / 2
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.abs(quad_area(q)) / longer
+    with np.errstate(divide="ignore", invalid="ignore"):  # a quad of one point: 0
+        return np.nan_to_num(np.abs(quad_area(q)) / longer, nan=0.0)
 
 
 def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,

@@ -67,6 +67,7 @@ from camkit.target._markers import (
     find_markers,
     is_x_corner,
     lattice_rounds,
+    narrowest_side,
     narrowest_width,
     neighbour_quads,
     predict_points,
@@ -244,15 +245,19 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     tags = sorted(quads)
     ids = grid.tag_point_ids()[tags].ravel()
     pred = np.concatenate([quads[m] for m in tags])
-    # How narrow the tag is in pixels (a tilted tag is narrow across its tilt, and so are its
-    # border and corner squares; seen obliquely it is sheared, narrower than its shortest
-    # side): the scale of the window, the X-junction's circle and the reach of the fit.
-    tag_px = np.repeat(narrowest_width(np.stack([quads[m] for m in tags])), 4)
+    # The tag's narrowest side in pixels (a tilted tag is narrow across its tilt, and so are
+    # its border and corner squares): the scale of the X-junction's circle and the reach of
+    # the fit. Seen obliquely a tag is sheared, narrower than its shortest side: how narrow
+    # (its area over its longer sides) scales the window and its smoothing.
+    tag_quads = np.stack([quads[m] for m in tags])
+    tag_px = np.repeat(narrowest_side(tag_quads), 4)
+    narrow_px = np.repeat(narrowest_width(tag_quads), 4)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
-    win = _refine(grid, full, ids, pred, tag_px, factor, out, sig)
-    side_of = np.zeros(N)
+    win = _refine(grid, full, ids, pred, tag_px, narrow_px, factor, out, sig)
+    side_of, narrow_of = np.zeros(N), np.zeros(N)
     side_of[ids] = tag_px
+    narrow_of[ids] = narrow_px
     # Corners whose quad put them too far off to converge: again, from the corners found
     # around them (a quadratic map of the grid within a pitch).
     obj2 = grid.object_points()[:, :2]
@@ -265,7 +270,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         ok = np.isfinite(p2).all(axis=1)
         if not ok.any():
             break
-        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], factor, out, sig)
+        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig)
     # Corners of tags not read (too small, blurred, or bent by the lens past reading through
     # their four corners), reached from the corners found, junction by junction.
     _grow(grid, full, out, sig, factor)
@@ -303,8 +308,8 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
                      f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
 
 
-def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray, factor: int,
-            out: np.ndarray, sig: np.ndarray, reach: float = 0.45) -> np.ndarray:
+def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
+            narrow_px: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, reach: float = 0.45) -> np.ndarray:
     """The corners ``ids`` at their saddle points from ``pred``, written into ``out`` and
     ``sig`` where the fit converges within ``reach`` of a corner square of the prediction (the
     nearest other junction is a corner square away) and the point is an X-junction on a
@@ -315,7 +320,8 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
     H, W = full.shape
     inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
     ids, pred, tag_px, clean = ids[inside], pred[inside], tag_px[inside], clean[inside]
-    win = np.clip(np.round(clean / 2.5), 2, 5 * factor).astype(int)
+    narrow = min(BORDER_BITS / n_cells, grid.tag_spacing) * narrow_px[inside]
+    win = np.clip(np.round(narrow / 2.5), 2, 5 * factor).astype(int)
     for r in np.unique(win):  # one fit per window size
         k = win == r
         # The smoothing follows the window where the junction is narrow (a corner square seen
@@ -365,14 +371,15 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     xs = (idx_x // 2) * grid.pitch + (idx_x % 2) * T  # the padded lattice's board places
     ys = (idx_y // 2) * grid.pitch + (idx_y % 2) * T
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
+        tag_px = np.fmin(np.hypot(*u.T), np.hypot(*v.T)) * T
         # The lattice cell's narrowest width (its area over its longer side), as a tag's.
-        tag_px = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.fmax(np.hypot(*u.T), np.hypot(*v.T)) * T
-        ok = np.isfinite(pred).all(axis=1) & np.isfinite(tag_px) & (tag_px >= 8)
+        narrow_px = np.abs(u[:, 0] * v[:, 1] - u[:, 1] * v[:, 0]) / np.fmax(np.hypot(*u.T), np.hypot(*v.T)) * T
+        ok = np.isfinite(pred).all(axis=1) & np.isfinite(tag_px) & np.isfinite(narrow_px) & (tag_px >= 8)
         if not ok.any():
             continue
-        cand, pred, tag_px, others = cand[ok], pred[ok], tag_px[ok], others[ok]
+        cand, pred, tag_px, narrow_px, others = cand[ok], pred[ok], tag_px[ok], narrow_px[ok], others[ok]
         tmp, tsig = np.full_like(out, np.nan), np.full_like(sig, np.nan)
-        _refine(grid, full, cand, pred, tag_px, factor, tmp, tsig, _GROWN_REACH)
+        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, _GROWN_REACH)
         q = tmp[cand]
         got = np.isfinite(q).all(axis=1)
         own = np.hypot(*(q - pred).T)

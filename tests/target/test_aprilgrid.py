@@ -248,8 +248,8 @@ def test_sheared_corner_squares_and_corners_at_the_image_edge():
     """Two corpus views that returned corners 1.0-1.33 px off their truth. View 455: a grid
     seen obliquely, its corner squares sheared to about 5 px across while their sides stay
     long; the window and smoothing followed the tag's shortest side (median error 0.49 px).
-    They now follow its narrowest width (measured: median 0.11, max 0.39 px). View 562: a
-    corner three rows from the image's bottom edge, its window reaching past it."""
+    They now follow how narrow it is (measured: median 0.11, max 0.39 px). View 562: a corner
+    three rows from the image's bottom edge, its window reaching past it."""
     from benchmarks.aprilgrid_corpus import view
 
     for seed, max_err, max_median in ((455, 0.6, 0.2), (562, 0.3, 0.1)):
