@@ -32,18 +32,18 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    and confirmed by a neighbour (one homography through both tags' corners);
 3. a confirmed tag's corner that its neighbours put a third of a corner square or more away is
    taken from them, and tags not read are read where their neighbours put them;
-4. each corner at its saddle point (camkit's sub-pixel estimator, the window, its smoothing
-   and the X-junction's circle scaled by how narrow the tag is, its area over its longer
-   sides: a tilted tag's border and corner squares are narrow across the tilt, and a sheared
-   one narrower than its shortest side), with its sigma; a fit that does not converge, whose
-   window does not fit inside the image, moves more than 0.45 of a corner square (the next
-   junction is a square away) or is not an X-junction is dropped, and tried again from the
-   corners found around it; then the points of tags not read (too small, blurred, or bent by
-   a lens past reading through their four corners) are reached from those found, junction by
-   junction (completing a rectangle of three found points, else continuing a row or column),
-   each kept within a quarter of a corner square of its prediction, nearer it than its
-   neighbours' places, on no other point, and with a sigma at most 1.5 times the median of
-   those found before;
+4. each corner at its saddle point (camkit's sub-pixel estimator; the X-junction's circle
+   and the fit's reach scaled by the tag's shortest side, the window and its smoothing by
+   how narrow the tag is, its area over its longer sides: a tilted tag's border and corner
+   squares are narrow across the tilt, and a sheared one is narrower than its shortest
+   side), with its sigma; a fit that does not converge, whose window does not fit inside the
+   image, moves more than 0.45 of a corner square (the next junction is a square away) or is
+   not an X-junction is dropped, and tried again from the corners found around it; then the
+   points of tags not read (too small, blurred, or bent by a lens past reading through their
+   four corners) are reached from those found, junction by junction (completing a rectangle
+   of three found points, else continuing a row or column), each kept within a quarter of a
+   corner square of its prediction, nearer it than its neighbours' places, on no other
+   point, and with a sigma at most 1.5 times the median of those found before;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %

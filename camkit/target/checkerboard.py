@@ -494,7 +494,8 @@ def _smoothed_patches(grey: np.ndarray, pts: np.ndarray, half: int, smoothing: f
 #: third. The margin covers the noise read low (JPEG keeps more of it beside edges than in
 #: the flat middles where it is measured: up to about twice).
 _MAX_CORNER_SIGMA = 0.25
-#: The fewest light squares whose middles give the noise (fewer: no estimate from the noise).
+#: Each light square's middle is compared with this many nearest; with no more light middles
+#: than this, the noise is the whole image's.
 _MIN_NOISE_SQUARES = 4
 
 
@@ -555,7 +556,7 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     neighbours' (the squares' edges reach in alike), give a white noise's variance w^2
     through the smoothing's correlation K: the residuals' mean square is w^2 tr(R K R^T) / n,
     R the fit's residual operator and n the window's pixels. Middles over four times the
-    median (an occluder, text) do not count. Where fewer than ``_MIN_NOISE_SQUARES`` light
+    median (an occluder, text) do not count. Where no more than ``_MIN_NOISE_SQUARES`` light
     middles qualify (small or foreshortened squares), and as a floor, w is the whole image's
     noise (:func:`_image_noise`, which JPEG's flattened areas and clipped pixels pull low).
     Then w^2 P K P^T (P the fit) is the variance of the fit's gradient terms, and each
