@@ -12,7 +12,7 @@ import numpy as np
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
 from camkit.target.aruco import ArucoDictionary
-from camkit.target.checkerboard import RawGrey, _half, _saddle_fit, _sample, _smoothed_patches
+from camkit.target.checkerboard import _SIGMA_RATIO, RawGrey, _half, _saddle_fit, _sample, _smoothed_patches
 
 
 def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
@@ -323,10 +323,11 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
 
 
 def drop_poor_fits(out: np.ndarray, sig: np.ndarray) -> None:
-    """Clear (NaN) the corners whose saddle fit's sigma is over twice the median of the others."""
+    """Clear (NaN) the corners whose saddle fit's sigma is over ``_SIGMA_RATIO`` (twice) the
+    median of the others, as the checkerboard's."""
     good = np.isfinite(sig)
     if good.any():
-        bad = good & (sig > 2.0 * np.median(sig[good]))
+        bad = good & (sig > _SIGMA_RATIO * np.median(sig[good]))
         out[bad] = np.nan
         sig[bad] = np.nan
 

@@ -73,7 +73,7 @@ from camkit.target._markers import (
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
-from camkit.target.checkerboard import _sample, _to_grey
+from camkit.target.checkerboard import _SIGMA_RATIO, _sample, _to_grey
 
 __all__ = ["Charuco"]
 
@@ -380,7 +380,7 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         return
     # A grown corner's fit is no poorer than the final test (drop_poor_fits) allows: one that
     # is would seed the next round's predictions before that test removed it.
-    sig_cap = 2.0 * float(np.median(sig[have]))
+    sig_cap = _SIGMA_RATIO * float(np.median(sig[have]))
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))

@@ -242,6 +242,14 @@ def _image_noise(grey: np.ndarray) -> float:
     return float(1.4826 * np.median(d) / np.sqrt(2.0))
 
 
+def _quad_design(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (2r+1)^2 window's offsets dx, dy (row-major) and the quadratic's design matrix
+    A, its columns dx^2, dx dy, dy^2, dx, dy, 1."""
+    oy, ox = np.mgrid[-r:r + 1, -r:r + 1].astype(np.float64)
+    dx, dy = ox.ravel(), oy.ravel()
+    return dx, dy, np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
+
+
 def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
     """Saddle point of a quadratic fitted on a (2r+1)^2 window centred on each estimate
     (sampled bicubically, so the window is symmetric about it); per-corner sigma from the
@@ -249,9 +257,7 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
     converged (its saddle still half a pixel or more from the window's centre after ``iters``
     steps of at most a pixel: no saddle near the estimate)."""
     q = pts.astype(np.float64).copy()
-    oy, ox = np.mgrid[-r:r + 1, -r:r + 1].astype(np.float64)
-    dx, dy = ox.ravel(), oy.ravel()
-    A = np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
+    dx, dy, A = _quad_design(r)
     pinv = np.linalg.pinv(A)
     AtA_inv = np.linalg.inv(A.T @ A)
     for _ in range(iters):
@@ -385,7 +391,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
     grey = _to_grey(image)
-    best = _detect(grey, board)
+    noise = _image_noise(grey)
+    best = _detect(grey, board, noise)
     level = grey
     factor = best_factor = 1
     n_corners = board.inner_cols * board.inner_rows
@@ -401,7 +408,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
             full = _refine_full(grey, coarse, factor, board)
             if full.found and (not best.found or full.n_found > best.n_found):
                 best, best_factor = full, factor
-    return _drop_noisy(grey, best, board, best_factor) if best.found else best
+    return _drop_noisy(grey, best, board, best_factor, noise) if best.found else best
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -544,7 +551,7 @@ def _fit_noise_factors(r: int, smoothing: float) -> tuple[float, tuple[float, fl
     return float(resid), (float(PKP[3, 3]), float(PKP[4, 4]))
 
 def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r: int,
-                 smoothing: float) -> np.ndarray:
+                 smoothing: float, image_noise: float) -> np.ndarray:
     """Each corner's one-sigma (per axis, px) from the image's noise, NaN where it has no
     saddle: what the fit's residuals miss (they take the smoothed noise as independent, and on
     a dim board under JPEG read tens of times low).
@@ -558,7 +565,8 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     R the fit's residual operator and n the window's pixels. Middles over four times the
     median (an occluder, text) do not count. Where no more than ``_MIN_NOISE_SQUARES`` light
     middles qualify (small or foreshortened squares), and as a floor, w is the whole image's
-    noise (:func:`_image_noise`, which JPEG's flattened areas and clipped pixels pull low).
+    noise, ``image_noise`` (:func:`_image_noise`, which JPEG's flattened areas and clipped
+    pixels pull low).
     Then w^2 P K P^T (P the fit) is the variance of the fit's gradient terms, and each
     corner's Hessian turns it into the saddle point's.
     """
@@ -575,15 +583,13 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     m = len(mid)
     pts = np.concatenate([mid, corners[seen]])
     mosaic, shift = _smoothed_patches(grey, pts, r + 3, smoothing)
-    oy, ox = np.mgrid[-r:r + 1, -r:r + 1].astype(np.float64)
-    dx, dy = ox.ravel(), oy.ravel()
-    A = np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
+    dx, dy, A = _quad_design(r)
     P = np.linalg.pinv(A)
     q = pts + shift
     vals = _sample(mosaic, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
     coef = vals @ P.T
     resid_factor, var_grad = _fit_noise_factors(r, smoothing)
-    white = _image_noise(grey) ** 2
+    white = image_noise ** 2
     light = coef[:m, 5] >= np.median(coef[:m, 5]) if m else np.zeros(0, dtype=bool)
     if light.sum() > _MIN_NOISE_SQUARES:
         res = (vals[:m] - coef[:m] @ A.T)[light]
@@ -602,11 +608,11 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     return sigma
 
 
-def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int) -> Detection:
+def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float) -> Detection:
     """Step 8 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and the
     noise's (:func:`_noise_sigma`); corners over ``_MAX_CORNER_SIGMA`` are dropped."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor)
+    noise = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
     sigma = np.fmax(det.sigma_px, noise)
     noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
     if not noisy.any():
@@ -623,8 +629,9 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
 
 
-def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
-    """Steps 1-4 of :func:`detect_corners` on one resolution."""
+def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -> Detection:
+    """Steps 1-4 of :func:`detect_corners` on one resolution (``noise``: the image's, where
+    already measured)."""
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
 
@@ -645,7 +652,8 @@ def _detect(grey: np.ndarray, board: Checkerboard) -> Detection:
     pts = buf[:n].astype(np.float64)
     v = _profiles(s, pts)
     shape, contrast, sym = _x_shape(v)
-    min_contrast = _contrast_floor(contrast[shape], _image_noise(grey) / (2.0 * np.sqrt(np.pi) * _SIGMA))
+    noise = _image_noise(grey) if noise is None else noise
+    min_contrast = _contrast_floor(contrast[shape], noise / (2.0 * np.sqrt(np.pi) * _SIGMA))
     ok = shape & (contrast > min_contrast)
     if ok.sum() < min(4, n_corners):
         return fail(f"not found: {int(ok.sum())} X-corners")
