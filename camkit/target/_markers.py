@@ -5,6 +5,7 @@ board's layout by their neighbours, and X-junctions refined at their saddle poin
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -322,14 +323,48 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
     return confirmed, {m: homs[m] for m in confirmed}, pitch
 
 
-def drop_poor_fits(out: np.ndarray, sig: np.ndarray) -> None:
+def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: np.ndarray | None = None) -> None:
     """Clear (NaN) the corners whose saddle fit's sigma is over ``_SIGMA_RATIO`` (twice) the
-    median of the others, as the checkerboard's."""
+    typical sigma, as the checkerboard's: ``typical`` (N,), each corner's own (a fit's sigma
+    depends on its window), else the median of all."""
     good = np.isfinite(sig)
     if good.any():
-        bad = good & (sig > _SIGMA_RATIO * np.median(sig[good]))
+        ref = np.median(sig[good]) if typical is None else typical
+        bad = good & (sig > _SIGMA_RATIO * ref)
         out[bad] = np.nan
         sig[bad] = np.nan
+
+
+class TypicalSigma:
+    """A typical saddle-fit sigma for each window: the larger of the median of the corners'
+    own fits (``sig`` (K,), at ``pts`` (K, 2)) and their median refitted with that window (on
+    the image ``full`` smoothed by ``smoothing(r)``), computed once per window. A fit's sigma
+    grows with its window (a quadratic follows the smoothed junction less far out: on a
+    small, noisy board twice as high from 2 to 3 px), so a corner fitted with a larger window
+    than the others is not judged by their smaller windows' fits."""
+
+    def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray,
+                 smoothing: Callable[[int], float]) -> None:
+        self.full, self.pts, self.smoothing = full, pts, smoothing
+        ok = np.isfinite(sig)
+        self.floor = float(np.median(sig[ok])) if ok.any() else np.inf
+        self.cache: dict[int, float] = {}
+
+    def at(self, r: int) -> float:
+        """The typical sigma with window ``r``; inf where no corner gives one."""
+        if r not in self.cache:
+            sg = refine_patches(self.full, self.pts, r, self.smoothing(r), iters=1)[1] if len(self.pts) \
+                else np.zeros(0)
+            sg = sg[np.isfinite(sg)]
+            self.cache[r] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
+        return self.cache[r]
+
+    def of(self, win: np.ndarray) -> np.ndarray:
+        """The typical sigma for each window in ``win`` (N,); inf where 0 (no corner)."""
+        out = np.full(len(win), np.inf)
+        for r in np.unique(win[win > 0]):
+            out[win == r] = self.at(int(r))
+        return out
 
 
 def _local_fits(rel: np.ndarray, near: np.ndarray, wide: np.ndarray, pts: np.ndarray) -> np.ndarray:

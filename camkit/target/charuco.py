@@ -33,15 +33,19 @@ Detection reads the markers first, then places the chessboard corners by their s
    smoothed image (camkit's sub-pixel estimator, window an eleventh of the square's image
    size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
    px at least), that is not an X-junction on a circle inside the white margin (four
-   alternating, point-symmetric sectors), or whose fit is over twice the median sigma, is
-   dropped;
+   alternating, point-symmetric sectors), whose colours on that circle disagree with its
+   label (dark towards its black squares, light towards its white ones: where blur joins two
+   thin margins, their crossing beside a marker is a saddle too), or whose fit's sigma is over twice the typical
+   one for its window (the median of the corners beside markers refitted with that window:
+   a fit's sigma grows with its window), is dropped;
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
    on the markers' pyramid level (a window and smoothing of a fifth and a twelfth of a square)
    and then on the full image, and kept where it lies within 0.15 of a square of its
    prediction, twice as near it as its neighbours' predicted places, on no other found
-   corner, and passes the tests of step 4.
+   corner, with its black squares dark where the lattice puts them, and passes the tests of
+   step 4.
 
 Every returned corner is labelled by markers read where the board's layout puts them, directly
 or through a chain of squares from one, so a board half out of the frame gives every corner it
@@ -59,11 +63,11 @@ from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._homography import apply_homographies, apply_homography, fit_homographies
 from camkit.target._markers import (
+    TypicalSigma,
     apart_from_found,
     confirm_markers,
     drop_poor_fits,
     find_markers,
-    is_x_corner,
     lattice_rounds,
     quad_area,
     recover_markers,
@@ -221,7 +225,11 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
                 confirmed.append(m)
     # 4. Chessboard corners next to confirmed markers, predicted, then at their saddle points.
     sx = board.squares_x
-    pred_sum = np.zeros((N, 2))
+    # Each corner's place and a square's steps along the board's x and y there (from half a
+    # square either side), through each touching marker's homography, averaged.
+    s = board.square
+    offsets = np.array([[0.0, 0.0], [0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]]) * s
+    pred_sum = np.zeros((N, 5, 2))
     pred_n = np.zeros(N)
     size = np.zeros(N)
     for m in confirmed:
@@ -229,11 +237,11 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         for cx, cy in ((x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)):
             if 1 <= cx <= sx - 1 and 1 <= cy <= board.squares_y - 1:
                 cid = (cy - 1) * (sx - 1) + (cx - 1)
-                pred_sum[cid] += apply_homography(homs[m], np.array([[cx * board.square, cy * board.square]]))[0]
+                pred_sum[cid] += apply_homography(homs[m], np.array([cx * s, cy * s]) + offsets)
                 pred_n[cid] += 1
                 size[cid] = max(size[cid], side_px[m])
     cand = np.flatnonzero(pred_n > 0)
-    pred = pred_sum[cand] / pred_n[cand, None]
+    five = pred_sum[cand] / pred_n[cand, None, None]
     # Where two confirmed markers touch a corner (its four squares), the prediction is their
     # least-squares homography's (one marker's quad read a pixel off at a thin margin weighs
     # half; a wider neighbourhood bends away from a homography through a fisheye).
@@ -248,14 +256,17 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         rows = np.flatnonzero(count == c)
         mk = np.stack([np.flatnonzero(touch[r]) for r in rows])  # (K, c) indices into confirmed
         Hn = fit_homographies(obj[conf[mk]].reshape(len(rows), 4 * c, 2), img_q[mk].reshape(len(rows), 4 * c, 2))
-        q = apply_homographies(Hn, cxy[rows, None] * board.square)[:, 0]
-        good = np.isfinite(q).all(axis=1)
-        pred[rows[good]] = q[good]
+        q = apply_homographies(Hn, cxy[rows, None] * s + offsets)
+        good = np.isfinite(q).all(axis=(1, 2))
+        five[rows[good]] = q[good]
+    pred = five[:, 0]
+    u, v = five[:, 1] - five[:, 2], five[:, 3] - five[:, 4]
     H, W = full.shape
     inside = (pred[:, 0] >= 2) & (pred[:, 0] <= W - 3) & (pred[:, 1] >= 2) & (pred[:, 1] <= H - 3)
-    cand, pred = cand[inside], pred[inside]
+    cand, pred, u, v = cand[inside], pred[inside], u[inside], v[inside]
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
+    win_of = np.zeros(N, dtype=np.int64)  # each found corner's window
     win = np.clip(np.round(size[cand] / 11.0), 2, 5 * factor).astype(int)
     for r in np.unique(win):  # one fit per window size
         k = win == r
@@ -265,15 +276,23 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         # On a circle inside the white margin that keeps the markers away (0.6 of it, 1.5 px
         # at least).
         margin = 0.5 * (board.square - board.marker) / board.square * size[cand[k]][ok]
-        ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * margin, 1.5))
+        rho = np.maximum(0.6 * margin, 1.5)
+        x, mid = x_corner_shades(full, q[ok], rho)
+        kk = np.flatnonzero(k)[ok][x]
+        x[x] = _colours_on_circle(board, full, cand[kk], q[ok][x], u[kk], v[kk], mid[x], rho[x])
+        ok[ok] = x
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
+        win_of[cand[k][ok]] = r
+    # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
+    # out): each corner's is judged against the corners beside markers refitted with its window.
+    typical = TypicalSigma(full, out[np.isfinite(sig)], sig[np.isfinite(sig)], lambda r: 1.5 * factor)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth.
-    drop_poor_fits(out, sig)
-    _grow(board, full, level, factor, out, sig)
-    drop_poor_fits(out, sig)
+    drop_poor_fits(out, sig, typical.of(win_of))
+    _grow(board, full, level, factor, out, sig, win_of, typical)
+    drop_poor_fits(out, sig, typical.of(win_of))
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -287,6 +306,17 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
 _REACH = 0.15
 
 
+def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
+    """+1 where corner ``cand``'s square on its (+x, +y) side is black, -1 where it holds a
+    marker (white)."""
+    nx = board.squares_x - 1
+    cx, cy = cand % nx + 1, cand // nx + 1
+    ms = board.marker_squares()
+    white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
+    white[ms[:, 1], ms[:, 0]] = True
+    return np.where(white[cy, cx], -1.0, 1.0)
+
+
 def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
                   v: np.ndarray, mid: np.ndarray) -> np.ndarray:
     """Which corners ``cand`` placed at ``q`` (K, 2) have their board's two black squares where
@@ -296,13 +326,7 @@ def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndar
     ``mid`` (K,), the middle of the shades on the X-test's circle (:func:`x_corner_shades`).
     A black square is one shade throughout; a junction of a marker's bits, or the next corner
     along a row or column (whose black squares are this one's marker squares), is not."""
-    nx = board.squares_x - 1
-    cx, cy = cand % nx + 1, cand // nx + 1
-    ms = board.marker_squares()
-    # The square (cx, cy) lies on the corner's (+u, +v) side; black where it holds no marker.
-    white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
-    white[ms[:, 1], ms[:, 0]] = True
-    sign = np.where(white[cy, cx], -1.0, 1.0)
+    sign = _square_signs(board, cand)
     f = np.array([0.2, 0.35, 0.5])
     a, b = (g.ravel() for g in np.meshgrid(f, f))
     a = np.concatenate([a, -a])  # (18,): the (+, +) square's points, then the (-, -) square's
@@ -312,9 +336,31 @@ def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndar
     return dark.max(axis=1) < mid
 
 
+def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
+                       v: np.ndarray, mid: np.ndarray, rho: np.ndarray) -> np.ndarray:
+    """Which corners ``cand`` placed at ``q`` (K, 2) are, on the X-test's circle (radius ``rho``
+    (K,), shades' middle ``mid`` (K,), :func:`x_corner_shades`), dark along the bisectors
+    of the sectors of their two black squares and light along those of their two white ones
+    (``u``, ``v``: a square's steps along the board's x and y, (K, 2); only their directions
+    near the corner matter, so a marker's homography through a fisheye serves). Where blur joins two thin
+    white margins, their crossing beside a marker is a saddle with four alternating sectors a
+    few pixels from the corner; it is dark towards the marker's border, where the corner has
+    a white square."""
+    sign = _square_signs(board, cand)[:, None]
+    # Along each sector's bisector (the unit steps' sum: a sheared square's diagonal runs close
+    # to its long side), towards the black squares (two), then the white ones.
+    u = u / np.maximum(np.hypot(*u.T), 1e-12)[:, None]
+    v = v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
+    diag = np.stack([u + sign * v, -(u + sign * v), u - sign * v, -(u - sign * v)], axis=1)
+    diag *= (rho[:, None] / np.maximum(np.hypot(*diag.transpose(2, 0, 1)), 1e-12))[..., None]
+    on = _sample(grey, q[:, None, 0] + diag[..., 0], q[:, None, 1] + diag[..., 1], "bilinear")
+    return (on[:, :2].max(axis=1) < mid) & (on[:, 2:].min(axis=1) > mid)
+
+
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
-                   others: np.ndarray, u: np.ndarray, v: np.ndarray, sig_cap: float) -> None:
+                   others: np.ndarray, u: np.ndarray, v: np.ndarray, win_of: np.ndarray,
+                   typical: TypicalSigma) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
@@ -327,7 +373,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     corner must end at least twice as near its own place as any of theirs (a neighbour's
     junction is not taken for it). Its two black squares must be dark where ``u``, ``v`` (a
     square's steps along the board's x and y) put them (:func:`_dark_squares`), and its
-    fit's sigma at most ``sig_cap``."""
+    fit's sigma at most :data:`_SIGMA_RATIO` times ``typical`` for its window (recorded in
+    ``win_of``)."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     rc = np.clip(np.round(size_l / 5.0), 2, 25).astype(int)
@@ -350,11 +397,14 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         moved[own > _REACH * size[k]] = np.inf
         theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
         moved[~(2.0 * own < theirs)] = np.inf
-        ok = np.isfinite(moved) & (sg <= sig_cap) & (moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
+        ok = np.isfinite(moved) & (sg <= _SIGMA_RATIO * typical.at(int(r))) & (
+            moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
         rho = np.maximum(0.6 * margin, 1.5)
         x, mid = x_corner_shades(full, q[ok], rho)
-        x[x] = _dark_squares(board, full, cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x], mid[x])
+        c, qx, ux, vx = cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x]
+        x[x] = (_dark_squares(board, full, c, qx, ux, vx, mid[x])
+                & _colours_on_circle(board, full, c, qx, ux, vx, mid[x], rho[x]))
         ok[ok] = x
         # One junction, one label: a corner that ends on another found corner (or on another
         # candidate's) is that corner, not this one.
@@ -362,10 +412,11 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
                                                                                       0.25 * size[k][ok]))
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
+        win_of[cand[k][ok]] = r
 
 
 def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
-          sig: np.ndarray) -> None:
+          sig: np.ndarray, win_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
     round: each predicted from the found corners beside it on the board (:func:`extend_lattice`),
     refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
@@ -375,12 +426,10 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
     H, W = full.shape
     s = board.square
     xs, ys = s * np.arange(-2, nx + 4), s * np.arange(-2, ny + 4)  # the padded lattice's board places
-    have = np.isfinite(sig)
-    if not have.any():
+    if not np.isfinite(sig).any():
         return
     # A grown corner's fit is no poorer than the final test (drop_poor_fits) allows: one that
     # is would seed the next round's predictions before that test removed it.
-    sig_cap = _SIGMA_RATIO * float(np.median(sig[have]))
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
@@ -392,4 +441,4 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
-                       others[inside], u[inside], v[inside], sig_cap)
+                       others[inside], u[inside], v[inside], win_of, typical)
