@@ -43,7 +43,9 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    four corners) are reached from those found, junction by junction (completing a rectangle
    of three found points, else continuing a row or column), each kept within a quarter of a
    corner square of its prediction, nearer it than its neighbours' places, on no other
-   point, and with a sigma at most 1.5 times the median of those found before;
+   point, and with a sigma at most 1.5 times the typical one for its window (the tags'
+   corners refitted with it: a fit's sigma grows with its window); a corner whose sigma is
+   over twice that is dropped;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
@@ -60,6 +62,7 @@ import numpy as np
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._markers import (
+    TypicalSigma,
     apart_from_found,
     confirm_markers,
     consistent_points,
@@ -254,7 +257,8 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     narrow_px = np.repeat(narrowest_width(tag_quads), 4)
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
-    win = _refine(grid, full, ids, pred, tag_px, narrow_px, factor, out, sig)
+    win_of = np.zeros(N, dtype=np.int64)
+    win = _refine(grid, full, ids, pred, tag_px, narrow_px, factor, out, sig, win_of)
     side_of, narrow_of = np.zeros(N), np.zeros(N)
     side_of[ids] = tag_px
     narrow_of[ids] = narrow_px
@@ -270,11 +274,14 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         ok = np.isfinite(p2).all(axis=1)
         if not ok.any():
             break
-        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig)
+        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig, win_of)
     # Corners of tags not read (too small, blurred, or bent by the lens past reading through
     # their four corners), reached from the corners found, junction by junction.
-    _grow(grid, full, out, sig, factor)
-    drop_poor_fits(out, sig)
+    # A fit's sigma is judged against the tags' corners refitted with its own window.
+    typical = TypicalSigma(full, out[np.isfinite(sig)], sig[np.isfinite(sig)],
+                           lambda r: _smoothing(r, factor))
+    _grow(grid, full, out, sig, factor, win_of, typical)
+    drop_poor_fits(out, sig, typical.of(win_of))
     # Each tag read again through its corners as found (the quad's where one is missing): a
     # corner at another junction, or in a corner square, turns the tag's cells and border
     # away from its code; such a tag's corners go.
@@ -309,11 +316,13 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
 
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
-            narrow_px: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, reach: float = 0.45) -> np.ndarray:
-    """The corners ``ids`` at their saddle points from ``pred``, written into ``out`` and
-    ``sig`` where the fit converges within ``reach`` of a corner square of the prediction (the
-    nearest other junction is a corner square away) and the point is an X-junction on a
-    circle inside its clean radius (the tag's border and the corner square, the smaller).
+            narrow_px: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, win_of: np.ndarray,
+            reach: float = 0.45) -> np.ndarray:
+    """The corners ``ids`` at their saddle points from ``pred``, written into ``out``, ``sig``
+    and ``win_of`` (the window) where the fit converges within ``reach`` of a corner square of
+    the prediction (the nearest other junction is a corner square away) and the point is an
+    X-junction on a circle inside its clean radius (the tag's border and the corner square,
+    the smaller).
     Returns the windows used."""
     n_cells = grid.aruco.marker_size + 2 * BORDER_BITS
     clean = min(BORDER_BITS / n_cells, grid.tag_spacing) * tag_px
@@ -326,7 +335,7 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
         k = win == r
         # The smoothing follows the window where the junction is narrow (a corner square seen
         # obliquely: more smoothing than that pulls the saddle towards the tag).
-        q, sg = refine_patches(full, pred[k], int(r), float(np.clip(r / 1.5, 1.5, 1.5 * factor)))
+        q, sg = refine_patches(full, pred[k], int(r), _smoothing(int(r), factor))
         moved = np.hypot(*(q - pred[k]).T)
         ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, reach * grid.tag_spacing
                                                                           * tag_px[k]))
@@ -337,7 +346,13 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
+        win_of[ids[k][ok]] = r
     return win
+
+
+def _smoothing(r: int, factor: int) -> float:
+    """The smoothing of a saddle fit with window ``r`` (pixels; ``factor``: the markers' level)."""
+    return float(np.clip(r / 1.5, 1.5, 1.5 * factor))
 
 
 def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
@@ -356,14 +371,15 @@ def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
 _GROWN_REACH = 0.25
 
 
-def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int) -> None:
+def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int,
+          win_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the grid's points next to found ones (``out``, NaN where not found), round by round:
     each predicted from the points found beside it on the grid (:func:`extend_lattice`), fitted
     and tested as :func:`_refine` does, and kept where it ends twice as near its own predicted
     place as its neighbours' along the grid's rows and columns, within :data:`_GROWN_REACH` of a
     corner square of it (0.45 for a tag's own corners), on no other found point, and with a
-    fit's sigma at most 1.5 times the median of the points found before it (no code vouches
-    for it). A point is tried again only once more of its neighbours are found. The check of every point
+    fit's sigma at most 1.5 times ``typical``'s for its window (no code vouches for it). A
+    point is tried again only once more of its neighbours are found. The check of every point
     against its neighbours that follows (:func:`consistent_points`) covers these too."""
     nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
     T = grid.tag_size
@@ -378,8 +394,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         if not ok.any():
             continue
         cand, pred, tag_px, narrow_px, others = cand[ok], pred[ok], tag_px[ok], narrow_px[ok], others[ok]
-        tmp, tsig = np.full_like(out, np.nan), np.full_like(sig, np.nan)
-        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, _GROWN_REACH)
+        tmp, tsig, twin = np.full_like(out, np.nan), np.full_like(sig, np.nan), np.zeros_like(win_of)
+        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, twin, _GROWN_REACH)
         q = tmp[cand]
         got = np.isfinite(q).all(axis=1)
         own = np.hypot(*(q - pred).T)
@@ -387,8 +403,7 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
-        read = np.isfinite(sig)
-        if read.any():  # no code vouches for a grown point: it must fit as well as most
-            got &= tsig[cand] <= 1.5 * np.median(sig[read])
+        got[got] = tsig[cand[got]] <= 1.5 * typical.of(twin[cand[got]])  # no code vouches for it
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
+        win_of[cand[got]] = twin[cand[got]]
