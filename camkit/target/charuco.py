@@ -34,10 +34,11 @@ Detection reads the markers first, then places the chessboard corners by their s
    size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
    px at least), that is not an X-junction on a circle inside the white margin (four
    alternating, point-symmetric sectors), whose colours on that circle disagree with its
-   label (dark towards its black squares, light towards its white ones: where blur joins two
-   thin margins, their crossing beside a marker is a saddle too), or whose fit's sigma is over twice the typical
-   one for its window (the median of the corners beside markers refitted with that window:
-   a fit's sigma grows with its window), is dropped;
+   label (dark towards its black squares, light towards its white ones: where blur joins
+   two thin margins, their crossing beside a marker is a saddle too), or whose fit's sigma
+   is over twice the typical one for its window (:class:`~camkit.target._markers.TypicalSigma`:
+   the median of the corners beside markers, or of their fits with that window where
+   higher; a fit's sigma grows with its window), is dropped;
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
@@ -285,7 +286,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         sig[cand[k][ok]] = sg[ok]
         win_of[cand[k][ok]] = r
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
-    # out): each corner's is judged against the corners beside markers refitted with its window.
+    # out): each corner's is judged against the corners beside markers, refitted with its
+    # window where their fits there are poorer.
     typical = TypicalSigma(full, out[np.isfinite(sig)], sig[np.isfinite(sig)], lambda r: 1.5 * factor)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
@@ -342,10 +344,10 @@ def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np
     (K,), shades' middle ``mid`` (K,), :func:`x_corner_shades`), dark along the bisectors
     of the sectors of their two black squares and light along those of their two white ones
     (``u``, ``v``: a square's steps along the board's x and y, (K, 2); only their directions
-    near the corner matter, so a marker's homography through a fisheye serves). Where blur joins two thin
-    white margins, their crossing beside a marker is a saddle with four alternating sectors a
-    few pixels from the corner; it is dark towards the marker's border, where the corner has
-    a white square."""
+    near the corner matter, so a marker's homography through a fisheye serves). Where blur
+    joins two thin white margins, their crossing beside a marker is a saddle with four
+    alternating sectors a few pixels from the corner; it is dark towards the marker's border,
+    where the corner has a white square."""
     sign = _square_signs(board, cand)[:, None]
     # Along each sector's bisector (the unit steps' sum: a sheared square's diagonal runs close
     # to its long side), towards the black squares (two), then the white ones.
