@@ -337,23 +337,27 @@ def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: np.ndarray | None 
 
 class TypicalSigma:
     """A typical saddle-fit sigma for each window: the larger of the median of the corners'
-    own fits (``sig`` (K,), at ``pts`` (K, 2)) and their median refitted with that window (on
-    the image ``full`` smoothed by ``smoothing(r)``), computed once per window. A fit's sigma
-    grows with its window (a quadratic follows the smoothed junction less far out: on a
-    small, noisy board twice as high from 2 to 3 px), so a corner fitted with a larger window
-    than the others is not judged by their smaller windows' fits."""
+    own fits (``sig`` (K,), at ``pts`` (K, 2), fitted with windows ``win`` (K,)) and the
+    median of those fitted with a window within a pixel of it, refitted with it (on the image
+    ``full`` smoothed by ``smoothing(r)``), computed once per window. A fit's sigma grows with
+    its window against the square (a quadratic follows the smoothed junction less far out: on
+    a small, noisy board, squares of 25-29 px, twice as high with 3 px as with 2 px, the two
+    windows its rounding gives), so a corner whose window rounds up is not judged by the
+    others' smaller ones. Only corners with a window near it are refitted: a larger window
+    on a smaller square fits worse still, and would excuse a poor fit."""
 
-    def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray,
+    def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray, win: np.ndarray,
                  smoothing: Callable[[int], float]) -> None:
-        self.full, self.pts, self.smoothing = full, pts, smoothing
         ok = np.isfinite(sig)
+        self.full, self.pts, self.win, self.smoothing = full, pts[ok], win[ok], smoothing
         self.floor = float(np.median(sig[ok])) if ok.any() else np.inf
         self.cache: dict[int, float] = {}
 
     def at(self, r: int) -> float:
         """The typical sigma with window ``r``; inf where no corner gives one."""
         if r not in self.cache:
-            sg = refine_patches(self.full, self.pts, r, self.smoothing(r), iters=1)[1] if len(self.pts) \
+            near = np.abs(self.win - r) <= 1
+            sg = refine_patches(self.full, self.pts[near], r, self.smoothing(r), iters=1)[1] if near.any() \
                 else np.zeros(0)
             sg = sg[np.isfinite(sg)]
             self.cache[r] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor

@@ -278,8 +278,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # Corners of tags not read (too small, blurred, or bent by the lens past reading through
     # their four corners), reached from the corners found, junction by junction.
     # A fit's sigma is judged against the tags' corners refitted with its own window.
-    typical = TypicalSigma(full, out[np.isfinite(sig)], sig[np.isfinite(sig)],
-                           lambda r: _smoothing(r, factor))
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor))
     _grow(grid, full, out, sig, factor, win_of, typical)
     drop_poor_fits(out, sig, typical.of(win_of))
     # Each tag read again through its corners as found (the quad's where one is missing): a

@@ -288,7 +288,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
     # out): each corner's is judged against the corners beside markers, refitted with its
     # window where their fits there are poorer.
-    typical = TypicalSigma(full, out[np.isfinite(sig)], sig[np.isfinite(sig)], lambda r: 1.5 * factor)
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth.

@@ -185,8 +185,11 @@ def test_a_fit_is_judged_against_fits_with_its_own_window():
     """Corpus view 234 (noise and JPEG; squares of 25-29 px): the corners beside markers were
     fitted with 2 px windows, those grown past them with 3 px, whose sigmas run twice as high
     (a quadratic follows the smoothed junction less far out), so a cap of twice the median
-    refused every grown corner (11 of 49 found). Each fit is now judged against the corners
-    beside markers refitted with its own window: all 49, each within 0.1 px of its truth."""
+    passed grown corners by a hair (45 of 49), and refused them all once two poor fits beside
+    markers were refused (11). Each fit is now judged against the corners beside markers with
+    a window within a pixel of its own, refitted with it: all 49, each within 0.1 px of its
+    truth. Only those: view 815 (squares of 75-100 px) refitted every corner with a 9 px window,
+    whose poorer fits on the smaller squares excused a corner 1.24 px off."""
     from benchmarks.charuco_corpus import view
 
     board, _, _, _, img, truth, _ = view(234)
@@ -194,8 +197,14 @@ def test_a_fit_is_judged_against_fits_with_its_own_window():
     err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
     assert det.n_found == board.n_points and err.max() < 0.1, (det.n_found, err.max())
     seen = det.ids
-    typical = TypicalSigma(_to_grey(img), truth.corners_px[seen], np.zeros(len(seen)), lambda r: 1.5)
+    typical = TypicalSigma(_to_grey(img), truth.corners_px[seen], np.zeros(len(seen)), np.full(len(seen), 2),
+                           lambda r: 1.5)
     assert typical.at(3) > 1.5 * typical.at(2)
+    board, _, _, _, img, truth, _ = view(815)
+    det = board.detect(img)
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert det.n_found >= 50 and err.max() < 1.0, (det.n_found, err.max())
+
 
 def test_opencv_tutorial_photos(shared_data):
     """OpenCV's ChArUco tutorial photos against OpenCV 5's CharucoDetector (the README of the
