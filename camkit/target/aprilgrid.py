@@ -44,8 +44,9 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    of three found points, else continuing a row or column), each kept within a quarter of a
    corner square of its prediction, nearer it than its neighbours' places, on no other
    point, and with a sigma at most 1.5 times the typical one for its window (the median of
-   the tags' corners' fits, or of their fits with that window where higher: a fit's sigma
-   grows with its window); a corner whose sigma is over twice that is dropped;
+   the tags' corners' fits, or where higher, of those with a window within a pixel of it
+   refitted with it: a fit's sigma grows with its window); a corner whose sigma is over
+   twice that is dropped;
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %

@@ -37,8 +37,8 @@ Detection reads the markers first, then places the chessboard corners by their s
    label (dark towards its black squares, light towards its white ones: where blur joins
    two thin margins, their crossing beside a marker is a saddle too), or whose fit's sigma
    is over twice the typical one for its window (:class:`~camkit.target._markers.TypicalSigma`:
-   the median of the corners beside markers, or of their fits with that window where
-   higher; a fit's sigma grows with its window), is dropped;
+   the median of the corners beside markers, or where higher, of those with a window within
+   a pixel of it refitted with it; a fit's sigma grows with its window), is dropped;
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
@@ -286,8 +286,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         sig[cand[k][ok]] = sg[ok]
         win_of[cand[k][ok]] = r
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
-    # out): each corner's is judged against the corners beside markers, refitted with its
-    # window where their fits there are poorer.
+    # out): each corner's is judged against the corners beside markers, those with about its
+    # window refitted with it where their fits there are poorer.
     typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
