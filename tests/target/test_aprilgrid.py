@@ -221,8 +221,9 @@ def test_corpus_sample_never_a_wrong_id():
     """Issue 23 item 3 on a sample of the rendered corpus (benchmarks/aprilgrid_corpus.py runs
     500 views): views 0-11 (fisheye, barrel, pincushion and pinhole lenses, tilts to 70 degrees,
     blur, noise, JPEG, partial grids). No returned corner more than 1 px from its id's truth;
-    at least 85 % of the eligible corners (tags wholly in view, 2 px a cell) found (measured
-    88.5 %); noise-free median error under 0.02 px (measured 0.0045)."""
+    at least 92 % of the eligible corners (tags wholly in view, 2 px a cell) found (measured
+    97.2 %; 88.5 % before each fit was judged against fits with its own window); noise-free
+    median error under 0.02 px (measured 0.0045)."""
     from benchmarks.aprilgrid_corpus import eligible, view
 
     found = total = 0
@@ -240,7 +241,7 @@ def test_corpus_sample_never_a_wrong_id():
         total += len(el)
         if not noisy:
             clean.extend(err.tolist())
-    assert found >= 0.85 * total, (found, total)
+    assert found >= 0.92 * total, (found, total)
     assert np.median(clean) < 0.02
 
 
