@@ -346,19 +346,26 @@ class TypicalSigma:
     others' smaller ones. Only corners with a window near it are refitted: a larger window
     on a smaller square fits worse still, and would excuse a poor fit."""
 
+    #: At most this many corners are refitted per window (evenly over those near it): a
+    #: median needs no more, and the refits cost.
+    MAX_REFITS = 16
+
     def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray, win: np.ndarray,
                  smoothing: Callable[[int], float]) -> None:
         ok = np.isfinite(sig)
-        self.full, self.pts, self.win, self.smoothing = full, pts[ok], win[ok], smoothing
+        self.full, self.pts, self.sig, self.win, self.smoothing = full, pts[ok], sig[ok], win[ok], smoothing
         self.floor = float(np.median(sig[ok])) if ok.any() else np.inf
         self.cache: dict[int, float] = {}
 
     def at(self, r: int) -> float:
         """The typical sigma with window ``r``; inf where no corner gives one."""
         if r not in self.cache:
-            near = np.abs(self.win - r) <= 1
-            sg = refine_patches(self.full, self.pts[near], r, self.smoothing(r), iters=1)[1] if near.any() \
-                else np.zeros(0)
+            same = self.win == r  # fitted with it already: their own sigmas
+            other = np.flatnonzero(np.abs(self.win - r) == 1)
+            other = other[np.linspace(0, len(other) - 1, min(len(other), self.MAX_REFITS)).astype(int)]
+            sg = self.sig[same]
+            if len(other):
+                sg = np.concatenate([sg, refine_patches(self.full, self.pts[other], r, self.smoothing(r), iters=1)[1]])
             sg = sg[np.isfinite(sg)]
             self.cache[r] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
         return self.cache[r]
