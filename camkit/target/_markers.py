@@ -323,14 +323,17 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
     return confirmed, {m: homs[m] for m in confirmed}, pitch
 
 
-def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: np.ndarray | None = None) -> None:
+def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: TypicalSigma | None = None,
+                   win: np.ndarray | None = None) -> None:
     """Clear (NaN) the corners whose saddle fit's sigma is over ``_SIGMA_RATIO`` (twice) the
-    typical sigma, as the checkerboard's: ``typical`` (N,), each corner's own (a fit's sigma
-    depends on its window), else the median of all."""
+    typical sigma, as the checkerboard's: ``typical``'s for each corner's window ``win`` (N,)
+    (a fit's sigma depends on its window), else the median of all."""
     good = np.isfinite(sig)
     if good.any():
-        ref = np.median(sig[good]) if typical is None else typical
-        bad = good & (sig > _SIGMA_RATIO * ref)
+        if typical is None:
+            bad = good & (sig > _SIGMA_RATIO * np.median(sig[good]))
+        else:
+            bad = good & ~typical.passes(sig, win, _SIGMA_RATIO)
         out[bad] = np.nan
         sig[bad] = np.nan
 
@@ -370,12 +373,17 @@ class TypicalSigma:
             self.cache[r] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
         return self.cache[r]
 
-    def of(self, win: np.ndarray) -> np.ndarray:
-        """The typical sigma for each window in ``win`` (N,); inf where 0 (no corner)."""
-        out = np.full(len(win), np.inf)
-        for r in np.unique(win[win > 0]):
-            out[win == r] = self.at(int(r))
-        return out
+    def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float) -> np.ndarray:
+        """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,)) are at most ``ratio``
+        times the typical sigma for their window; NaN sigmas do not pass. A window is refitted
+        only where one of its fits is over ``ratio`` times the floor (the typical sigma is
+        never below it)."""
+        ok = np.isfinite(sig) & (sig <= ratio * self.floor)
+        over = np.isfinite(sig) & ~ok
+        for r in np.unique(win[over]):
+            k = over & (win == r)
+            ok[k] = sig[k] <= ratio * self.at(int(r))
+        return ok
 
 
 def _local_fits(rel: np.ndarray, near: np.ndarray, wide: np.ndarray, pts: np.ndarray) -> np.ndarray:

@@ -281,7 +281,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # A fit's sigma is judged against the tags' corners refitted with its own window.
     typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor))
     _grow(grid, full, out, sig, factor, win_of, typical)
-    drop_poor_fits(out, sig, typical.of(win_of))
+    drop_poor_fits(out, sig, typical, win_of)
     # Each tag read again through its corners as found (the quad's where one is missing): a
     # corner at another junction, or in a corner square, turns the tag's cells and border
     # away from its code; such a tag's corners go.
@@ -403,7 +403,7 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
-        got[got] = tsig[cand[got]] <= 1.5 * typical.of(twin[cand[got]])  # no code vouches for it
+        got[got] = typical.passes(tsig[cand[got]], twin[cand[got]], 1.5)  # no code vouches for it
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
         win_of[cand[got]] = twin[cand[got]]

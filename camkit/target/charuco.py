@@ -292,9 +292,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth.
-    drop_poor_fits(out, sig, typical.of(win_of))
+    drop_poor_fits(out, sig, typical, win_of)
     _grow(board, full, level, factor, out, sig, win_of, typical)
-    drop_poor_fits(out, sig, typical.of(win_of))
+    drop_poor_fits(out, sig, typical, win_of)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -399,7 +399,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         moved[own > _REACH * size[k]] = np.inf
         theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
         moved[~(2.0 * own < theirs)] = np.inf
-        ok = np.isfinite(moved) & (sg <= _SIGMA_RATIO * typical.at(int(r))) & (
+        ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO) & (
             moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
         rho = np.maximum(0.6 * margin, 1.5)
