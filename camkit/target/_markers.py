@@ -324,65 +324,76 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
 
 
 def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: TypicalSigma | None = None,
-                   win: np.ndarray | None = None) -> None:
+                   win: np.ndarray | None = None, sm: np.ndarray | None = None) -> None:
     """Clear (NaN) the corners whose saddle fit's sigma is over ``_SIGMA_RATIO`` (twice) the
     typical sigma, as the checkerboard's: ``typical``'s for each corner's window ``win`` (N,)
-    (a fit's sigma depends on its window), else the median of all."""
+    and smoothing ``sm`` (N,) (a fit's sigma depends on both), else the median of all."""
     good = np.isfinite(sig)
     if good.any():
         if typical is None:
             bad = good & (sig > _SIGMA_RATIO * np.median(sig[good]))
         else:
-            bad = good & ~typical.passes(sig, win, _SIGMA_RATIO)
+            bad = good & ~typical.passes(sig, win, _SIGMA_RATIO, sm)
         out[bad] = np.nan
         sig[bad] = np.nan
 
 
 class TypicalSigma:
-    """A typical saddle-fit sigma for each window: the larger of the median of the corners'
-    own fits (``sig`` (K,), at ``pts`` (K, 2), fitted with windows ``win`` (K,)) and the
-    median of those fitted with a window within a pixel of it, refitted with it (on the image
-    ``full`` smoothed by ``smoothing(r)``), computed once per window. A fit's sigma grows with
-    its window against the square (a quadratic follows the smoothed junction less far out: on
-    a small, noisy board, squares of 25-29 px, twice as high with 3 px as with 2 px, the two
-    windows its rounding gives), so a corner whose window rounds up is not judged by the
-    others' smaller ones. Only corners with a window near it are refitted: a larger window
-    on a smaller square fits worse still, and would excuse a poor fit."""
+    """A typical saddle-fit sigma for each window and smoothing: the larger of the median of
+    the corners' own fits (``sig`` (K,), at ``pts`` (K, 2), fitted with windows ``win`` (K,)
+    on the image ``full`` smoothed by ``sm`` (K,), default ``smoothing(win)``) and the median
+    of those fitted with a window within a pixel of it, refitted with it (and that smoothing),
+    computed once per pair. A fit's sigma grows with its window against the square (a
+    quadratic follows the smoothed junction less far out: on a small, noisy board, squares of
+    25-29 px, twice as high with 3 px as with 2 px, the two windows its rounding gives), and
+    with less smoothing (more of the noise is left), so a corner whose window rounds up is not
+    judged by the others' smaller ones. Only corners with a window near it are refitted: a
+    larger window on a smaller square fits worse still, and would excuse a poor fit."""
 
     #: At most this many corners are refitted per window (evenly over those near it): a
     #: median needs no more, and the refits cost.
     MAX_REFITS = 16
 
     def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray, win: np.ndarray,
-                 smoothing: Callable[[int], float]) -> None:
+                 smoothing: Callable[[int], float], sm: np.ndarray | None = None) -> None:
         ok = np.isfinite(sig)
         self.full, self.pts, self.sig, self.win, self.smoothing = full, pts[ok], sig[ok], win[ok], smoothing
+        self.sm = self._smoothings(win, sm)[ok]
         self.floor = float(np.median(sig[ok])) if ok.any() else np.inf
-        self.cache: dict[int, float] = {}
+        self.cache: dict[tuple[int, float], float] = {}
 
-    def at(self, r: int) -> float:
-        """The typical sigma with window ``r``; inf where no corner gives one."""
-        if r not in self.cache:
-            same = self.win == r  # fitted with it already: their own sigmas
-            other = np.flatnonzero(np.abs(self.win - r) == 1)
+    def _smoothings(self, win: np.ndarray, sm: np.ndarray | None) -> np.ndarray:
+        if sm is not None:
+            return np.asarray(sm, dtype=np.float64)
+        return np.array([self.smoothing(int(r)) for r in win], dtype=np.float64)
+
+    def at(self, r: int, s: float | None = None) -> float:
+        """The typical sigma with window ``r`` and smoothing ``s`` (default ``smoothing(r)``);
+        inf where no corner gives one."""
+        s = self.smoothing(r) if s is None else float(s)
+        if (r, s) not in self.cache:
+            same = (self.win == r) & (self.sm == s)  # fitted with them already: their own sigmas
+            other = np.flatnonzero((np.abs(self.win - r) <= 1) & ~same)
             other = other[np.linspace(0, len(other) - 1, min(len(other), self.MAX_REFITS)).astype(int)]
             sg = self.sig[same]
             if len(other):
-                sg = np.concatenate([sg, refine_patches(self.full, self.pts[other], r, self.smoothing(r), iters=1)[1]])
+                sg = np.concatenate([sg, refine_patches(self.full, self.pts[other], r, s, iters=1)[1]])
             sg = sg[np.isfinite(sg)]
-            self.cache[r] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
-        return self.cache[r]
+            self.cache[(r, s)] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
+        return self.cache[(r, s)]
 
-    def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float) -> np.ndarray:
-        """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,)) are at most ``ratio``
-        times the typical sigma for their window; NaN sigmas do not pass. A window is refitted
-        only where one of its fits is over ``ratio`` times the floor (the typical sigma is
-        never below it)."""
+    def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float, sm: np.ndarray | None = None) -> np.ndarray:
+        """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,) and smoothings ``sm``
+        (N,), default ``smoothing(win)``) are at most ``ratio`` times the typical sigma for
+        their pair; NaN sigmas do not pass. A pair is refitted only where one of its fits is
+        over ``ratio`` times the floor (the typical sigma is never below it)."""
         ok = np.isfinite(sig) & (sig <= ratio * self.floor)
         over = np.isfinite(sig) & ~ok
-        for r in np.unique(win[over]):
-            k = over & (win == r)
-            ok[k] = sig[k] <= ratio * self.at(int(r))
+        if over.any():
+            sm = self._smoothings(win, sm)
+            for r, s in {(int(a), float(b)) for a, b in zip(win[over], sm[over], strict=True)}:
+                k = over & (win == r) & (sm == s)
+                ok[k] = sig[k] <= ratio * self.at(r, s)
         return ok
 
 

@@ -29,16 +29,18 @@ Detection reads the markers first, then places the chessboard corners by their s
    contradicted by fewer than confirm it;
 4. each chessboard corner next to a confirmed marker is predicted through the markers'
    homographies (the least-squares homography of both markers touching it where two are
-   confirmed, else its marker's) and placed at the saddle point of the
-   smoothed image (camkit's sub-pixel estimator, window an eleventh of the square's image
-   size, 2 to 5 px), with its sigma; a corner that moves more than a tenth of a square (1.5
-   px at least), that is not an X-junction on a circle inside the white margin (four
-   alternating, point-symmetric sectors), whose colours on that circle disagree with its
-   label (dark towards its black squares, light towards its white ones: where blur joins
-   two thin margins, their crossing beside a marker is a saddle too), or whose fit's sigma
-   is over twice the typical one for its window (:class:`~camkit.target._markers.TypicalSigma`:
-   the median of the corners beside markers, or where higher, of those with a window within
-   a pixel of it refitted with it; a fit's sigma grows with its window), is dropped;
+   confirmed, else its marker's) and placed at the saddle point of the smoothed image
+   (camkit's sub-pixel estimator, window an eleventh of the square's image size, 2 to 5 px,
+   smoothing 1.5 px, both less where they would reach the corner's markers: on a sheared
+   board the markers in the acute sectors come near it), with its sigma; a corner that
+   moves more than a tenth of a square (1.5 px at least), that is not an X-junction on a
+   circle inside the white margin (four alternating, point-symmetric sectors), whose
+   colours on that circle disagree with its label (dark towards its black squares, light
+   towards its white ones: where blur joins two thin margins, their crossing beside a
+   marker is a saddle too), or whose fit's sigma is over twice the typical one for its
+   window and smoothing (:class:`~camkit.target._markers.TypicalSigma`: the median of the
+   corners beside markers, or where higher, of those with a window within a pixel of it
+   refitted with it; a fit's sigma grows with its window), is dropped;
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
@@ -267,11 +269,12 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     cand, pred, u, v = cand[inside], pred[inside], u[inside], v[inside]
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
-    win_of = np.zeros(N, dtype=np.int64)  # each found corner's window
-    win = np.clip(np.round(size[cand] / 11.0), 2, 5 * factor).astype(int)
-    for r in np.unique(win):  # one fit per window size
-        k = win == r
-        q, sg = refine_patches(full, pred[k], int(r), 1.5 * factor)
+    win_of = np.zeros(N, dtype=np.int64)  # each found corner's window and smoothing
+    sm_of = np.zeros(N)
+    win, smooth = _windows(board, cand, u, v, size[cand], factor)
+    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
+        k = (win == r) & (smooth == sm)
+        q, sg = refine_patches(full, pred[k], int(r), sm)
         moved = np.hypot(*(q - pred[k]).T)
         ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
         # On a circle inside the white margin that keeps the markers away (0.6 of it, 1.5 px
@@ -285,16 +288,17 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
         win_of[cand[k][ok]] = r
+        sm_of[cand[k][ok]] = sm
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
-    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor)
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth.
-    drop_poor_fits(out, sig, typical, win_of)
-    _grow(board, full, level, factor, out, sig, win_of, typical)
-    drop_poor_fits(out, sig, typical, win_of)
+    drop_poor_fits(out, sig, typical, win_of, sm_of)
+    _grow(board, full, level, factor, out, sig, win_of, sm_of, typical)
+    drop_poor_fits(out, sig, typical, win_of, sm_of)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -302,6 +306,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(confirmed)} markers (window {window} px)")
+
 
 
 #: How far (in squares) a corner grown past the markers may lie from its prediction.
@@ -317,6 +322,38 @@ def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
     white[ms[:, 1], ms[:, 0]] = True
     return np.where(white[cy, cx], -1.0, 1.0)
+
+
+def _windows(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray, size: np.ndarray,
+             factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """The saddle fit's window and smoothing for each corner ``cand``, (K,) each: an eleventh of
+    its square's image size ``size`` (2 to 5 ``factor`` px) and 1.5 ``factor`` px, narrower and
+    less (to 2 px and 1 px, in quarter pixels) where the window and 2.5 smoothing sigmas would
+    reach its two markers. ``u``, ``v`` (K, 2): a square's steps along the board's x and y
+    there. On a sheared board the markers in the acute sectors come near the corner (seed 100
+    of the corpus, noise-free, squares of 50 px: 5-10 px against 15-28 px for the corners of
+    the other chirality), and a fit that sees their borders moves 0.2-0.4 px."""
+    sign = _square_signs(board, cand)
+    lo = (board.square - board.marker) / (2 * board.square)  # a marker's near side, in squares
+    hi = 1.0 - lo
+    # The marker squares: (+x, -y sign) and (-x, +y sign) of the corner; each marker's four
+    # corners in squares, then through the local steps, the corner at 0.
+    mk = np.array([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
+    clear = np.full(len(cand), np.inf)
+    for sx_, sy_ in ((1.0, -1.0), (-1.0, 1.0)):
+        a = sx_ * mk[None, :, 0]
+        b = sy_ * sign[:, None] * mk[None, :, 1]  # (K, 4)
+        q = a[..., None] * u[:, None] + b[..., None] * v[:, None]  # (K, 4, 2)
+        for k in range(4):
+            p0, p1 = q[:, k], q[:, (k + 1) % 4]
+            d = p1 - p0
+            t = np.clip(-(p0 * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-12), 0.0, 1.0)
+            clear = np.minimum(clear, np.hypot(*(p0 + t[:, None] * d).T))
+    clear = np.nan_to_num(clear, nan=np.inf)  # a step unknown (a lattice's edge): the size alone
+    s0 = 1.5 * factor
+    r = np.clip(np.minimum(np.round(size / 11.0), np.floor(clear - 2.5 * s0)), 2, 5 * factor).astype(int)
+    sm = np.clip(np.floor((clear - r) / 2.5 * 4) / 4, 1.0, s0)
+    return r, sm
 
 
 def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
@@ -362,7 +399,7 @@ def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
                    others: np.ndarray, u: np.ndarray, v: np.ndarray, win_of: np.ndarray,
-                   typical: TypicalSigma) -> None:
+                   sm_of: np.ndarray, typical: TypicalSigma) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
@@ -388,18 +425,18 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         q, _ = refine_patches(level, pred_l[k], int(r), sgm, iters=steps)
         near = np.hypot(*(q - pred_l[k]).T) <= _REACH * size_l[k]
         start[k[near]] = (q[near] + 0.5) * factor - 0.5
-    win = np.clip(np.round(size / 11.0), 2, 5 * factor).astype(int)
-    for r in np.unique(win):  # one fit per window size
-        k = np.flatnonzero((win == r) & np.isfinite(start).all(axis=1))
+    win, smooth = _windows(board, cand, u, v, size, factor)
+    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
+        k = np.flatnonzero((win == r) & (smooth == sm) & np.isfinite(start).all(axis=1))
         if not len(k):
             continue
-        q, sg = refine_patches(full, start[k], int(r), 1.5 * factor)
+        q, sg = refine_patches(full, start[k], int(r), sm)
         moved = np.hypot(*(q - start[k]).T)
         own = np.hypot(*(q - pred[k]).T)
         moved[own > _REACH * size[k]] = np.inf
         theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
         moved[~(2.0 * own < theirs)] = np.inf
-        ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO) & (
+        ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO, np.full(len(k), sm)) & (
             moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
         rho = np.maximum(0.6 * margin, 1.5)
@@ -415,10 +452,11 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
         win_of[cand[k][ok]] = r
+        sm_of[cand[k][ok]] = sm
 
 
 def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
-          sig: np.ndarray, win_of: np.ndarray, typical: TypicalSigma) -> None:
+          sig: np.ndarray, win_of: np.ndarray, sm_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
     round: each predicted from the found corners beside it on the board (:func:`extend_lattice`),
     refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
@@ -443,4 +481,4 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
-                       others[inside], u[inside], v[inside], win_of, typical)
+                       others[inside], u[inside], v[inside], win_of, sm_of, typical)
