@@ -26,7 +26,14 @@ Detection reads the markers first, then places the chessboard corners by their s
    another board's; an id seen twice is dropped; and each marker must be confirmed by a
    neighbour (another marker within two squares such that one homography maps both markers'
    board corners onto their eight image corners within 15 % of a square, 2 px at least) and
-   contradicted by fewer than confirm it;
+   contradicted by fewer than confirm it. Where fewer than three are confirmed (markers too
+   small or blurred to read one by one), the board is read as a whole: the chessboard's
+   lattice of X-junctions (the checkerboard detector's steps 1-2), each square bounded by
+   four of its corners sampled at the code's cells, and every placement of the lattice on the
+   board (four turns, every shift) scored by the correlation of its marker squares with the
+   codes it puts there; the best is taken only where it stands :data:`_BOARD_Z` standard
+   deviations above chance and :data:`_BOARD_MARGIN` above the next placement, and its
+   markers are confirmed as those read one by one;
 4. each chessboard corner next to a confirmed marker is predicted through the markers'
    homographies (the least-squares homography of both markers touching it where two are
    confirmed, else its marker's) and placed at the saddle point of the smoothed image
@@ -80,7 +87,7 @@ from camkit.target._markers import (
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
-from camkit.target.checkerboard import _SIGMA_RATIO, _sample, _to_grey
+from camkit.target.checkerboard import _SIGMA_RATIO, _sample, _to_grey, lattices
 
 __all__ = ["Charuco"]
 
@@ -211,6 +218,16 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
     confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
+    if len(confirmed) < _READ_BOARD_BELOW:
+        # Too few markers read one by one: the board's markers read together, through its
+        # chessboard lattice.
+        for mid, quads in _read_board(board, level, factor).items():
+            have = found.setdefault(mid, [])
+            for q in quads:
+                span = float(np.ptp(q, axis=0).max())
+                if not any(np.hypot(*(c.mean(axis=0) - q.mean(axis=0))) < 0.5 * span for c in have):
+                    have.append(q)
+        confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if not confirmed:
         why = unconfirmed_reason(found, len(ms), "marker", "board")
         return Detection.not_found(N, f"not found: {why} (dictionary {board.dictionary})")
@@ -307,6 +324,121 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(confirmed)} markers (window {window} px)")
 
+
+
+#: Where fewer markers than this are confirmed one by one, the board is read as a whole.
+_READ_BOARD_BELOW = 3
+#: A board read as a whole is accepted where its best placement's score is at least this many
+#: standard deviations of a wrong placement's (each marker's correlation with its code, summed
+#: over the markers and scaled to unit variance where the bits do not match) ...
+_BOARD_Z = 8.0
+#: ... and this many above the next best placement.
+_BOARD_MARGIN = 6.0
+
+
+def _read_board(board: Charuco, g: np.ndarray, f: int) -> dict[int, list[np.ndarray]]:
+    """Markers too small or blurred to read one by one, read together (:func:`_lattice_reads`):
+    a lattice's best placement where its score is :data:`_BOARD_Z` standard deviations of a
+    wrong placement's and :data:`_BOARD_MARGIN` above the next (a wrong placement correlates
+    each marker with another's code, which the dictionary keeps apart). Returns the markers'
+    corners as :func:`find_markers` does (full-image pixels, the code's order)."""
+    out: dict[int, list[np.ndarray]] = {}
+    for z, second, ids, corners in _lattice_reads(board, g):
+        if z >= _BOARD_Z and z - second >= _BOARD_MARGIN:
+            for mid, q in zip(ids, corners, strict=True):
+                out.setdefault(int(mid), []).append((q + 0.5) * f - 0.5)
+    return out
+
+
+def _lattice_reads(board: Charuco, g: np.ndarray):
+    """The chessboard's lattices in ``g`` (the checkerboard detector's X-corners and lattice
+    growth, :func:`~camkit.target.checkerboard.lattices`), their corners at their saddle
+    points, and every square bounded by four of them sampled at the code's cells through its
+    corners; each placement of a lattice on the board (four turns, every shift that keeps its
+    corners on the board's inner corners) puts a marker's code on half its squares, and is
+    scored by their correlation. Yields, per lattice, ``(z, second, ids, corners)``: its best
+    placement's score (each marker square's correlation with its code times the square root
+    of its bits, summed, over the square root of their number: about a standard normal where
+    nothing matches), the next best's, the ids placed and the markers' corners ((K, 4, 2),
+    pixels of ``g``, the code's order)."""
+    d = board.aruco
+    n = d.marker_size + 2
+    inner = d.marker_size
+    s, m = board.square, board.marker
+    lo = (s - m) / (2 * s)
+    unit = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    c = (np.arange(inner) + 1.5) / n * (m / s) + lo  # the code's cell middles, in squares
+    cx, cy = np.meshgrid(c, c)
+    cell_pts = np.stack([cx.ravel(), cy.ravel()], axis=-1)
+    codes = d.codes.reshape(len(d), -1).astype(np.float64)
+    codes = (codes - codes.mean(axis=1, keepdims=True)) / np.maximum(codes.std(axis=1, keepdims=True), 1e-9)
+    ms = board.marker_squares()
+    at = np.full((board.squares_y, board.squares_x), -1)
+    at[ms[:, 1], ms[:, 0]] = np.arange(len(ms))
+    codes = codes[:len(ms)]
+    nx, ny = board.squares_x - 1, board.squares_y - 1
+    for pts, lat in lattices(g, max(nx, ny)):
+        if len(pts) < 4:
+            continue
+        G = np.full(tuple(lat.max(axis=0) + 2), -1, dtype=np.int64)
+        G[lat[:, 0], lat[:, 1]] = np.arange(len(lat))
+        # The squares with four corners, in the lattice's slot order (i, j), (i+1, j), (i+1, j+1),
+        # (i, j+1).
+        i, j = np.nonzero((G[:-1, :-1] >= 0) & (G[1:, :-1] >= 0) & (G[1:, 1:] >= 0) & (G[:-1, 1:] >= 0))
+        if len(i) < 2:
+            continue
+        four = np.stack([G[i, j], G[i + 1, j], G[i + 1, j + 1], G[i, j + 1]], axis=-1)
+        spacing = float(np.median(np.hypot(*(pts[four[:, 1]] - pts[four[:, 0]]).T)))
+        r = int(np.clip(round(spacing / 11.0), 2, 5))
+        ref, sg = refine_patches(g, pts, r, 1.0)
+        ref = np.where((np.isfinite(sg) & (np.hypot(*(ref - pts).T) <= 0.15 * spacing))[:, None], ref, pts)
+        quad = ref[four]  # (S, 4, 2)
+        # The lattice's frame turned as the image (the board is seen from its front): its first
+        # axis to its second clockwise (y down).
+        e1, e2 = quad[:, 1] - quad[:, 0], quad[:, 3] - quad[:, 0]
+        if np.median(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) < 0:
+            i, j = j, i
+            quad = quad[:, [0, 3, 2, 1]]
+            lat = lat[:, ::-1]
+        Hs = fit_homographies(np.broadcast_to(unit, quad.shape), quad)
+        okH = np.isfinite(Hs).all(axis=(1, 2))
+        Hs[~okH] = np.eye(3)
+        cells = apply_homographies(Hs, np.broadcast_to(cell_pts, (len(quad), len(cell_pts), 2)))
+        v = _sample(g, cells[..., 0], cells[..., 1], "bilinear").reshape(len(quad), inner, inner)
+        best: list[tuple[float, int, int, int]] = []
+        for R in range(4):
+            vb = np.stack([np.rot90(x, -R).ravel() for x in v])
+            sd = vb.std(axis=1)
+            vb = (vb - vb.mean(axis=1, keepdims=True)) / np.maximum(sd, 1e-12)[:, None]
+            score = vb @ codes.T / inner  # (squares, markers): unit variance where unrelated
+            score[(sd < 1e-9) | ~okH] = 0.0
+            # The lattice's corners and squares' middles turned R quarter turns: (x, y) -> (-y, x).
+            pc, sq = lat.astype(np.int64), np.stack([i, j], axis=-1) * 2 + 1  # middles, in half squares
+            for _ in range(R):
+                pc = np.stack([-pc[:, 1], pc[:, 0]], axis=-1)
+                sq = np.stack([-sq[:, 1], sq[:, 0]], axis=-1)
+            for tx in range(1 - pc[:, 0].min(), nx - pc[:, 0].max() + 1):
+                for ty in range(1 - pc[:, 1].min(), ny - pc[:, 1].max() + 1):
+                    bx, by = (sq[:, 0] - 1) // 2 + tx, (sq[:, 1] - 1) // 2 + ty  # the board's squares
+                    ids = at[by, bx]
+                    has = ids >= 0
+                    if has.sum() < 2:
+                        continue
+                    z = float(score[np.flatnonzero(has), ids[has]].sum() / np.sqrt(has.sum()))
+                    best.append((z, R, tx, ty))
+        if not best:
+            continue
+        best.sort(key=lambda t: -t[0])
+        z, R, tx, ty = best[0]
+        second = best[1][0] if len(best) > 1 else 0.0
+        sq = np.stack([i, j], axis=-1) * 2 + 1
+        for _ in range(R):
+            sq = np.stack([-sq[:, 1], sq[:, 0]], axis=-1)
+        ids = at[(sq[:, 1] - 1) // 2 + ty, (sq[:, 0] - 1) // 2 + tx]
+        has = (ids >= 0) & okH
+        mk = apply_homographies(Hs[has], np.broadcast_to(unit * (m / s) + lo, (int(has.sum()), 4, 2)))
+        # The code's corner b (the board's slot) is the lattice's slot b - R.
+        yield z, second, ids[has], mk[:, (np.arange(4) - R) % 4]
 
 
 #: How far (in squares) a corner grown past the markers may lie from its prediction.

@@ -629,6 +629,48 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
 
 
+def _x_corners(grey: np.ndarray, noise: float | None = None):
+    """Step 1 of :func:`detect_corners` on one resolution: ``(smoothed image, saddle response,
+    X-corners (K, 2) integer pixels, their profiles (K, 32), symmetry (K,), the contrast floor,
+    why none)``; ``why`` is "" where candidates were found (``noise``: the image's, where
+    already measured)."""
+    s = np.empty_like(grey)
+    detect_kernels.gaussian_blur(grey, _SIGMA, s)
+    R = np.empty_like(s)
+    detect_kernels.saddle_response(s, R)
+    none = np.zeros((0, 2))
+    rmax = float(R.max())
+    if not rmax > 0:
+        return s, R, none, np.zeros((0, 32)), np.zeros(0), 0.0, "not found: no saddle points in the image"
+    buf = np.empty((_MAX_CANDIDATES, 2), dtype=np.int64)
+    n = detect_kernels.local_maxima(R, 3, 0.05 * rmax, buf)
+    if n < 4:
+        return s, R, none, np.zeros((0, 32)), np.zeros(0), 0.0, "not found: fewer than 4 corner candidates"
+    pts = buf[:n].astype(np.float64)
+    v = _profiles(s, pts)
+    shape, contrast, sym = _x_shape(v)
+    noise = _image_noise(grey) if noise is None else noise
+    min_contrast = _contrast_floor(contrast[shape], noise / (2.0 * np.sqrt(np.pi) * _SIGMA))
+    ok = shape & (contrast > min_contrast)
+    return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
+
+
+def lattices(grey: np.ndarray, max_side: int) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The checker lattices of X-corners in ``grey`` (steps 1-2 of :func:`detect_corners`,
+    growth within ``max_side + 2`` places of each seed): ``(points (K, 2) integer pixels,
+    lattice coordinates (K, 2) from 0)`` each, largest first. The lattice's axes may run
+    either way round in the image."""
+    g = np.ascontiguousarray(grey, dtype=np.float64)
+    s, R, pts, v, _, _, why = _x_corners(g)
+    if why or len(pts) < 4:
+        return []
+    most = max(3 * (max_side + 1) ** 2, 500)
+    if len(pts) > most:  # clutter or noise: the strongest (bounds the time)
+        keep = np.argsort(-R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)])[:most]
+        pts, v = pts[keep], v[keep]
+    return [(pts[idx], c) for idx, c in _assemble(pts, max_side, s, v.max(axis=1) - v.min(axis=1))]
+
+
 def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -> Detection:
     """Steps 1-4 of :func:`detect_corners` on one resolution (``noise``: the image's, where
     already measured)."""
@@ -638,26 +680,11 @@ def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -
     def fail(msg: str, window: int = 0) -> Detection:
         return Detection.not_found(n_corners, msg, window)
 
-    s = np.empty_like(grey)
-    detect_kernels.gaussian_blur(grey, _SIGMA, s)
-    R = np.empty_like(s)
-    detect_kernels.saddle_response(s, R)
-    rmax = float(R.max())
-    if not rmax > 0:
-        return fail("not found: no saddle points in the image")
-    buf = np.empty((_MAX_CANDIDATES, 2), dtype=np.int64)
-    n = detect_kernels.local_maxima(R, 3, 0.05 * rmax, buf)
-    if n < 4:
-        return fail("not found: fewer than 4 corner candidates")
-    pts = buf[:n].astype(np.float64)
-    v = _profiles(s, pts)
-    shape, contrast, sym = _x_shape(v)
-    noise = _image_noise(grey) if noise is None else noise
-    min_contrast = _contrast_floor(contrast[shape], noise / (2.0 * np.sqrt(np.pi) * _SIGMA))
-    ok = shape & (contrast > min_contrast)
-    if ok.sum() < min(4, n_corners):
-        return fail(f"not found: {int(ok.sum())} X-corners")
-    pts, v, sym = pts[ok], v[ok], sym[ok]
+    s, R, pts, v, sym, min_contrast, why = _x_corners(grey, noise)
+    if why:
+        return fail(why)
+    if len(pts) < min(4, n_corners):
+        return fail(f"not found: {len(pts)} X-corners")
     strength = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)]
     if len(pts) > max(3 * n_corners, 500):  # clutter or noise: keep the strongest (bounds the time)
         keep = np.argsort(-strength)[:max(3 * n_corners, 500)]

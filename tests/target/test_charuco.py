@@ -17,7 +17,7 @@ from camkit.render import render_target
 from camkit.target import Charuco
 from camkit.target._markers import TypicalSigma, x_corner_shades
 from camkit.target.base import Sheet
-from camkit.target.charuco import _colours_on_circle, _dark_squares, _square_signs
+from camkit.target.charuco import _BOARD_Z, _colours_on_circle, _dark_squares, _lattice_reads, _square_signs
 from camkit.target.checkerboard import _to_grey
 
 
@@ -224,6 +224,31 @@ def test_the_fit_keeps_clear_of_the_markers_in_the_acute_sectors():
     assert det.n_found >= 63 and err.max() < 0.5, (det.n_found, err.max())
     for k in (1, -1):
         assert (kind == k).sum() >= 25 and np.median(err[kind == k]) < 0.03, (k, np.median(err[kind == k]))
+
+
+def test_markers_too_small_to_read_one_by_one_are_read_as_a_board():
+    """Corpus view 5 (squares of 20 px, 5x5 markers at 2.2 px a cell, blurred, noise and JPEG):
+    no marker reads by itself, and OpenCV's CharucoDetector finds no corner. Read as a board
+    (its chessboard lattice, each square sampled at the code's cells, every placement of the
+    lattice on the board scored), every corner is found within 0.1 px. The same image as a
+    board it is not (the other legacy setting, whose markers sit on the other squares; a
+    dictionary of 5x5 codes as well; the board turned) gives no placement near the bar and
+    no corner."""
+    from benchmarks.charuco_corpus import opencv_corners, view
+
+    board, _, _, _, img, truth, _ = view(5)
+    assert len(opencv_corners(board, img)[0]) == 0
+    det = board.detect(img)
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert det.n_found == board.n_points and err.max() < 0.1, (det.n_found, err.max())
+    g = _to_grey(img)
+    assert max(z for z, *_ in _lattice_reads(board, g)) > 2 * _BOARD_Z
+    sx, sy, s, m = board.squares_x, board.squares_y, board.square, board.marker
+    for other in (Charuco(sx, sy, s, m, board.dictionary, legacy=not board.legacy),
+                  Charuco(sx, sy, s, m, "DICT_ARUCO_ORIGINAL", legacy=board.legacy),
+                  Charuco(sy, sx, s, m, board.dictionary, legacy=board.legacy)):
+        assert max(z for z, *_ in _lattice_reads(other, g)) < 0.5 * _BOARD_Z
+        assert other.detect(img).n_found == 0
 
 
 def test_opencv_tutorial_photos(shared_data):
