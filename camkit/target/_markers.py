@@ -365,7 +365,10 @@ class TypicalSigma:
     def _smoothings(self, win: np.ndarray, sm: np.ndarray | None) -> np.ndarray:
         if sm is not None:
             return np.asarray(sm, dtype=np.float64)
-        return np.array([self.smoothing(int(r)) for r in win], dtype=np.float64)
+        out = np.zeros(len(win))
+        for r in np.unique(win):  # one smoothing per window
+            out[win == r] = self.smoothing(int(r))
+        return out
 
     def at(self, r: int, s: float | None = None) -> float:
         """The typical sigma with window ``r`` and smoothing ``s`` (default ``smoothing(r)``);
