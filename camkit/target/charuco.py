@@ -51,7 +51,8 @@ Detection reads the markers first, then places the chessboard corners by their s
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
-   on the markers' pyramid level (a window and smoothing of a fifth and a twelfth of a square)
+   on the markers' pyramid level (a window and smoothing of a fifth and a twelfth of a square,
+   the window kept clear of the corner's markers; where none fits, from the prediction)
    and then on the full image, and kept where it lies within 0.15 of a square of its
    prediction, twice as near it as its neighbours' predicted places, on no other found
    corner, with its black squares dark where the lattice puts them, and passes the tests of
@@ -288,7 +289,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     sig = np.full(N, np.nan)
     win_of = np.zeros(N, dtype=np.int64)  # each found corner's window and smoothing
     sm_of = np.zeros(N)
-    win, smooth = _windows(board, cand, u, v, size[cand], factor)
+    win, smooth = _windows(size[cand], _clearance(board, cand, u, v), factor)
     for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
         k = (win == r) & (smooth == sm)
         q, sg = refine_patches(full, pred[k], int(r), sm)
@@ -456,15 +457,10 @@ def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     return np.where(white[cy, cx], -1.0, 1.0)
 
 
-def _windows(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray, size: np.ndarray,
-             factor: int) -> tuple[np.ndarray, np.ndarray]:
-    """The saddle fit's window and smoothing for each corner ``cand``, (K,) each: an eleventh of
-    its square's image size ``size`` (2 to 5 ``factor`` px) and 1.5 ``factor`` px, narrower and
-    less (to 2 px and 1 px, in quarter pixels) where the window and 2.5 smoothing sigmas would
-    reach its two markers. ``u``, ``v`` (K, 2): a square's steps along the board's x and y
-    there. On a sheared board the markers in the acute sectors come near the corner (seed 100
-    of the corpus, noise-free, squares of 50 px: 5-10 px against 15-28 px for the corners of
-    the other chirality), and a fit that sees their borders moves 0.2-0.4 px."""
+def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """How far (pixels) each corner ``cand`` lies from its two markers, through the local steps
+    ``u``, ``v`` (K, 2: a square's steps along the board's x and y there); inf where a step is
+    unknown (a lattice's edge)."""
     sign = _square_signs(board, cand)
     lo = (board.square - board.marker) / (2 * board.square)  # a marker's near side, in squares
     hi = 1.0 - lo
@@ -481,7 +477,17 @@ def _windows(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray, siz
             d = p1 - p0
             t = np.clip(-(p0 * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-12), 0.0, 1.0)
             clear = np.minimum(clear, np.hypot(*(p0 + t[:, None] * d).T))
-    clear = np.nan_to_num(clear, nan=np.inf)  # a step unknown (a lattice's edge): the size alone
+    return np.nan_to_num(clear, nan=np.inf)
+
+
+def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
+    """The saddle fit's window and smoothing for corners of squares ``size`` px across lying
+    ``clear`` px from their markers (:func:`_clearance`), (K,) each: an eleventh of the size (2
+    to 5 ``factor`` px) and 1.5 ``factor`` px, narrower and less (to 2 px and 1 px, in quarter
+    pixels) where the window and 2.5 smoothing sigmas would reach the markers. On a sheared
+    board the markers in the acute sectors come near the corner (seed 100 of the corpus,
+    noise-free, squares of 50 px: 5-10 px against 15-28 px for the corners of the other
+    chirality), and a fit that sees their borders moves 0.2-0.4 px."""
     s0 = 1.5 * factor
     r = np.clip(np.minimum(np.round(size / 11.0), np.floor(clear - 2.5 * s0)), 2, 5 * factor).astype(int)
     sm = np.clip(np.floor((clear - r) / 2.5 * 4) / 4, 1.0, s0)
@@ -538,7 +544,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     :data:`_REACH` of a square in all, and are X-junctions on a circle inside the white
     margin. The coarser saddle (on ``level``, the image the markers were read
     on, ``factor`` times smaller: a window and smoothing of a fifth and a twelfth of the
-    square, as many steps as the reach takes) finds a corner that the corners beside it
+    square, the window no wider than keeps clear of the corner's markers, as many steps as
+    the reach takes; skipped where no window of 2 px fits) finds a corner that the corners beside it
     predict a few pixels off, as through a fisheye's rim. ``others`` (K, 4, 2): the places
     of each corner's neighbours along the board's rows and columns as predicted with it; a
     corner must end at least twice as near its own place as any of theirs (a neighbour's
@@ -548,16 +555,21 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     ``win_of``)."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
-    rc = np.clip(np.round(size_l / 5.0), 2, 25).astype(int)
-    start = np.full_like(pred, np.nan)
-    for r in np.unique(rc):
+    clear = _clearance(board, cand, u, v)
+    # The coarse window and smoothing, kept clear of the markers as the fine fit's (a coarse fit
+    # that sees them drifts off the corner: squares of 17 px with margins of 2 px, 1-5 px); where
+    # no window fits, the search starts from the prediction.
+    rc = np.clip(np.minimum(np.round(size_l / 5.0), np.floor(clear / factor - 2.5 * np.maximum(1.5, size_l / 12.0))),
+                 0, 25).astype(int)
+    start = np.where((rc < 2)[:, None], pred, np.nan)
+    for r in np.unique(rc[rc >= 2]):
         k = np.flatnonzero(rc == r)
         sgm = max(1.5, float(np.median(size_l[k])) / 12.0)
         steps = int(np.clip(np.ceil(_REACH * size_l[k].max()), 6, 40))
         q, _ = refine_patches(level, pred_l[k], int(r), sgm, iters=steps)
         near = np.hypot(*(q - pred_l[k]).T) <= _REACH * size_l[k]
         start[k[near]] = (q[near] + 0.5) * factor - 0.5
-    win, smooth = _windows(board, cand, u, v, size, factor)
+    win, smooth = _windows(size, clear, factor)
     for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
         k = np.flatnonzero((win == r) & (smooth == sm) & np.isfinite(start).all(axis=1))
         if not len(k):
