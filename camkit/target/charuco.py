@@ -467,16 +467,13 @@ def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -
     # The marker squares: (+x, -y sign) and (-x, +y sign) of the corner; each marker's four
     # corners in squares, then through the local steps, the corner at 0.
     mk = np.array([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
-    clear = np.full(len(cand), np.inf)
-    for sx_, sy_ in ((1.0, -1.0), (-1.0, 1.0)):
-        a = sx_ * mk[None, :, 0]
-        b = sy_ * sign[:, None] * mk[None, :, 1]  # (K, 4)
-        q = a[..., None] * u[:, None] + b[..., None] * v[:, None]  # (K, 4, 2)
-        for k in range(4):
-            p0, p1 = q[:, k], q[:, (k + 1) % 4]
-            d = p1 - p0
-            t = np.clip(-(p0 * d).sum(axis=1) / np.maximum((d * d).sum(axis=1), 1e-12), 0.0, 1.0)
-            clear = np.minimum(clear, np.hypot(*(p0 + t[:, None] * d).T))
+    a = np.array([1.0, -1.0])[None, :, None] * mk[None, None, :, 0]  # (1, 2 markers, 4)
+    b = np.array([-1.0, 1.0])[None, :, None] * sign[:, None, None] * mk[None, None, :, 1]  # (K, 2, 4)
+    p0 = a[..., None] * u[:, None, None] + b[..., None] * v[:, None, None]  # (K, 2, 4, 2)
+    d = np.roll(p0, -1, axis=2) - p0  # each marker's four sides
+    t = np.clip(-(p0 * d).sum(axis=-1) / np.maximum((d * d).sum(axis=-1), 1e-12), 0.0, 1.0)
+    near = p0 + t[..., None] * d
+    clear = np.hypot(near[..., 0], near[..., 1]).min(axis=(1, 2))
     return np.nan_to_num(clear, nan=np.inf)
 
 
