@@ -65,6 +65,7 @@ shows that is joined to a confirmed marker.
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Self
 
@@ -351,7 +352,7 @@ def _read_board(board: Charuco, g: np.ndarray, f: int) -> dict[int, list[np.ndar
     return out
 
 
-def _lattice_reads(board: Charuco, g: np.ndarray):
+def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray]]:
     """The chessboard's lattices in ``g`` (the checkerboard detector's X-corners and lattice
     growth, :func:`~camkit.target.checkerboard.lattices`), their corners at their saddle
     points, and every square bounded by four of them sampled at the code's cells through its
@@ -408,7 +409,7 @@ def _lattice_reads(board: Charuco, g: np.ndarray):
         v = _sample(g, cells[..., 0], cells[..., 1], "bilinear").reshape(len(quad), inner, inner)
         best: list[tuple[float, int, int, int]] = []
         for R in range(4):
-            vb = np.stack([np.rot90(x, -R).ravel() for x in v])
+            vb = np.rot90(v, -R, axes=(1, 2)).reshape(len(v), -1)
             sd = vb.std(axis=1)
             vb = (vb - vb.mean(axis=1, keepdims=True)) / np.maximum(sd, 1e-12)[:, None]
             score = vb @ codes.T / inner  # (squares, markers): unit variance where unrelated

@@ -629,7 +629,8 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
 
 
-def _x_corners(grey: np.ndarray, noise: float | None = None):
+def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
+                                                                      np.ndarray, float, str]:
     """Step 1 of :func:`detect_corners` on one resolution: ``(smoothed image, saddle response,
     X-corners (K, 2) integer pixels, their profiles (K, 32), symmetry (K,), the contrast floor,
     why none)``; ``why`` is "" where candidates were found (``noise``: the image's, where
