@@ -208,12 +208,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
             if code < 0:
                 continue
             # The code's corner j is the quad's corner (j - turns) % 4.
-            corners = (quad[(np.arange(4) - k) % 4] + 0.5) * f - 0.5
-            span = float(np.ptp(corners, axis=0).max())
-            same = level.setdefault(int(code), [])
-            # One marker read at two windows: the same place (its centre within half its span).
-            if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
-                same.append(corners)
+            add_marker(level, int(code), (quad[(np.arange(4) - k) % 4] + 0.5) * f - 0.5)
         if len(level) >= len(found):
             found = level  # the finer level's corners where it reads as much
         # A marker's narrowest side per cell, at this level.
@@ -221,6 +216,16 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
         if len(level) >= 2 and np.median(cells) >= 2.0:
             break
     return found, f, g
+
+
+def add_marker(found: dict[int, list[np.ndarray]], code: int, corners: np.ndarray) -> None:
+    """Add a marker read as ``code`` at ``corners`` (4, 2) to ``found`` unless that code is there
+    already at the same place (its centre within half its span): one marker read twice (at two
+    windows, or one by one and as part of the board)."""
+    span = float(np.ptp(corners, axis=0).max())
+    same = found.setdefault(code, [])
+    if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
+        same.append(corners)
 
 
 def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, d: ArucoDictionary,

@@ -76,6 +76,7 @@ from camkit.errors import ParameterError
 from camkit.target._homography import apply_homographies, apply_homography, fit_homographies
 from camkit.target._markers import (
     TypicalSigma,
+    add_marker,
     apart_from_found,
     confirm_markers,
     drop_poor_fits,
@@ -89,7 +90,7 @@ from camkit.target._markers import (
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
-from camkit.target.checkerboard import _SIGMA_RATIO, _sample, _to_grey, lattices
+from camkit.target.checkerboard import _SIGMA_RATIO, _lattices, _sample, _to_grey
 
 __all__ = ["Charuco"]
 
@@ -224,11 +225,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         # Too few markers read one by one: the board's markers read together, through its
         # chessboard lattice.
         for mid, quads in _read_board(board, level, factor).items():
-            have = found.setdefault(mid, [])
             for q in quads:
-                span = float(np.ptp(q, axis=0).max())
-                if not any(np.hypot(*(c.mean(axis=0) - q.mean(axis=0))) < 0.5 * span for c in have):
-                    have.append(q)
+                add_marker(found, mid, q)
         confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if not confirmed:
         why = unconfirmed_reason(found, len(ms), "marker", "board")
@@ -354,7 +352,7 @@ def _read_board(board: Charuco, g: np.ndarray, f: int) -> dict[int, list[np.ndar
 
 def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray]]:
     """The chessboard's lattices in ``g`` (the checkerboard detector's X-corners and lattice
-    growth, :func:`~camkit.target.checkerboard.lattices`), their corners at their saddle
+    growth, :func:`~camkit.target.checkerboard._lattices`), their corners at their saddle
     points, and every square bounded by four of them sampled at the code's cells through its
     corners; each placement of a lattice on the board (four turns, every shift that keeps its
     corners on the board's inner corners) puts a marker's code on half its squares, and is
@@ -379,7 +377,7 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
     at[ms[:, 1], ms[:, 0]] = np.arange(len(ms))
     codes = codes[:len(ms)]
     nx, ny = board.squares_x - 1, board.squares_y - 1
-    for pts, lat in lattices(g, max(nx, ny)):
+    for pts, lat in _lattices(g, max(nx, ny)):
         if len(pts) < 4:
             continue
         G = np.full(tuple(lat.max(axis=0) + 2), -1, dtype=np.int64)

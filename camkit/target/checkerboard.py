@@ -656,7 +656,7 @@ def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray
     return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
 
 
-def lattices(grey: np.ndarray, max_side: int) -> list[tuple[np.ndarray, np.ndarray]]:
+def _lattices(grey: np.ndarray, max_side: int) -> list[tuple[np.ndarray, np.ndarray]]:
     """The checker lattices of X-corners in ``grey`` (steps 1-2 of :func:`detect_corners`,
     growth within ``max_side + 2`` places of each seed): ``(points (K, 2) integer pixels,
     lattice coordinates (K, 2) from 0)`` each, largest first. The lattice's axes may run
