@@ -17,6 +17,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import skimage
 
 from benchmarks.harness import Case, median_time
 from camkit.io import read_image
@@ -60,12 +61,21 @@ def cases() -> list[Case]:
 
 
 def extra_tables() -> str:
+    """An image with no board: 640x480 noise (issue 23 asks <= 50 ms) and a 12 MP photo (no bound
+    asked; where no level reads a marker, the pyramid is read to the full image and the board
+    is read as a whole there)."""
     board = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
     noise = np.random.default_rng(0).integers(0, 256, (480, 640), dtype=np.uint8)
-    ours = median_time(lambda: board.detect(noise), repeats=5, warmup=1)
+    photo = cv2.cvtColor(cv2.resize(skimage.data.astronaut(), (4000, 3000), interpolation=cv2.INTER_CUBIC),
+                         cv2.COLOR_RGB2GRAY)
     det = _cv(board)
-    theirs = median_time(lambda: det.detectBoard(noise), repeats=5, warmup=1)
+    rows = []
+    for name, img, target, repeats in (("640x480 noise", noise, 0.05, 5),
+                                       ("12 MP photo (astronaut, enlarged)", photo, None, 3)):
+        ours = median_time(lambda img=img: board.detect(img), repeats=repeats, warmup=1)
+        theirs = median_time(lambda img=img: det.detectBoard(img), repeats=repeats, warmup=1)
+        verdict = "no bound asked" if target is None else f"<= {target * 1e3:.0f} ms: " + (
+            "met" if ours <= target else "MISSED")
+        rows.append(f"| {name} | {ours * 1e3:.1f} ms | {theirs * 1e3:.1f} ms | {verdict} |\n")
     return ("| an image with no board (ChArUco 5x7 asked) | camkit | cv2 CharucoDetector | target |\n"
-            "|---|---|---|---|\n"
-            f"| 640x480 noise | {ours * 1e3:.1f} ms | {theirs * 1e3:.1f} ms | <= 50 ms: "
-            f"{'met' if ours <= 0.05 else 'MISSED'} |\n")
+            "|---|---|---|---|\n" + "".join(rows))
