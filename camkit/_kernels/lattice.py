@@ -144,11 +144,12 @@ def neighbour_spacing(pts: np.ndarray, out: np.ndarray) -> None:  # pragma: no c
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, img: np.ndarray,
-                contrast: float) -> bool:  # pragma: no cover - numba
+                contrast: float, offset: float) -> bool:  # pragma: no cover - numba
     """Whether ``a1 - seed - a2`` and ``b1 - seed - b2`` are a row and a column of a checker
     lattice through ``seed``: the two lines cross at 20 degrees or more, and each of the four
-    links runs along an edge between a black and a white square. The shade is taken three
-    tenths of the other line's step either side of the link at a quarter, a half and three
+    links runs along an edge between a black and a white square. The shade is taken ``offset``
+    (three tenths for a plain checkerboard; less where the white squares hold markers) of the
+    other line's step either side of the link at a quarter, a half and three
     quarters of its length (inside the two squares beside the edge), and must differ by 0.4 of
     the seed's ``contrast``, the same way round each time. A diagonal link's middle is a
     square's centre, with the same shade either side, and fails; so does a link two steps long,
@@ -169,7 +170,8 @@ def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, 
         first = 0.0
         for f in (0.25, 0.5, 0.75):
             mx, my = sx + f * (pts[k, 0] - sx), sy + f * (pts[k, 1] - sy)
-            diff = bilinear(img, mx + 0.3 * ox, my + 0.3 * oy) - bilinear(img, mx - 0.3 * ox, my - 0.3 * oy)
+            diff = (bilinear(img, mx + offset * ox, my + offset * oy)
+                    - bilinear(img, mx - offset * ox, my - offset * oy))
             if abs(diff) < 0.4 * contrast or diff * first < 0:
                 return False
             first = diff
@@ -202,13 +204,13 @@ _EDGE_STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray, contrast: float, seed: int,
-         G: np.ndarray) -> int:  # pragma: no cover - numba
+         G: np.ndarray, offset: float) -> int:  # pragma: no cover - numba
     """Grow a lattice from corner ``seed`` into ``G`` (square, odd side; the seed at its centre)
     and return how many corners it holds (1 where the seed's neighbourhood fails its checks).
 
     The seed's four edge neighbours come first: among its twelve nearest free candidates
     (0.3 to 3.5 of its ``spacing`` away), pairs nearly opposite through the seed are lines
-    through it, and the shortest two lines that pass :func:`_seed_cross` (each link runs along
+    through it, and the shortest two lines that pass :func:`_seed_cross` (``offset``; each link runs along
     an edge between a black and a white square) and put three of the four diagonal neighbours
     where a corner is (within a third of a step) are its row and column. No direction measured
     at the corner itself is needed: under a steep tilt or at a fisheye's rim the profile
@@ -259,7 +261,7 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     for i1 in range(n_pairs):
         for i2 in range(i1 + 1, n_pairs):
             p, q = porder[i1], porder[i2]
-            if _seed_cross(pts, seed, pa[p], pb[p], pa[q], pb[q], img, contrast):
+            if _seed_cross(pts, seed, pa[p], pb[p], pa[q], pb[q], img, contrast, offset):
                 G[R + 1, R], G[R - 1, R], G[R, R + 1], G[R, R - 1] = pa[p], pb[p], pa[q], pb[q]
                 for k in (pa[p], pb[p], pa[q], pb[q]):
                     taken[k] = True
@@ -342,8 +344,9 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def assemble(pts: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.ndarray, side: int,
-             owner: np.ndarray, coord: np.ndarray) -> int:  # pragma: no cover - numba
-    """Grow lattices (:func:`grow`, in a grid of ``side``) from the candidates in ``order``;
+             owner: np.ndarray, coord: np.ndarray, offset: float) -> int:  # pragma: no cover - numba
+    """Grow lattices (:func:`grow`, in a grid of ``side``, ``offset`` for its edge test) from
+    the candidates in ``order``;
     corners of a lattice of five or more seed no other. Writes each candidate's lattice number
     into ``owner`` (-1: none) and its lattice position into ``coord``; stops once nine tenths
     of the candidates are used. Returns the number of lattices."""
@@ -358,7 +361,7 @@ def assemble(pts: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.n
     for seed in order:
         if used[seed]:
             continue
-        c = grow(pts, spacing, used, img, contrast[seed], seed, G)
+        c = grow(pts, spacing, used, img, contrast[seed], seed, G, offset)
         if c < 5:
             continue
         for a in range(side):

@@ -283,19 +283,21 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
     return q, np.where(rest < 0.5, sigma, np.nan)
 
 
-def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray,
-              contrast: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray, contrast: np.ndarray,
+              offset: float = 0.3) -> list[tuple[np.ndarray, np.ndarray]]:
     """The corners' lattices: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
     turn, most central first; corners in a grown lattice seed no other. Growth stays within
     ``max_side + 2`` positions of its seed either way (a lattice that reaches that far is
-    longer than the board, and is refused later as such). Returns (indices into pts, lattice
-    coordinates from 0) for each lattice, largest first."""
+    longer than the board, and is refused later as such). ``offset``: how far either side of a
+    seed's links their squares' shades are taken, in steps (0.3; less where the white squares
+    hold markers). Returns (indices into pts, lattice coordinates from 0) for each lattice,
+    largest first."""
     order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T), kind="stable")
     side = 2 * (max_side + 2) + 1
     owner = np.empty(len(pts), dtype=np.int64)
     coord = np.empty((len(pts), 2), dtype=np.int64)
     n = lattice_kernels.assemble(np.ascontiguousarray(pts), img, np.ascontiguousarray(contrast), order, side,
-                                 owner, coord)
+                                 owner, coord, offset)
     out = []
     for k in range(n):
         idx = np.flatnonzero(owner == k)
@@ -656,11 +658,13 @@ def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray
     return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
 
 
-def _lattices(grey: np.ndarray, max_side: int) -> list[tuple[np.ndarray, np.ndarray]]:
+def _lattices(grey: np.ndarray, max_side: int,
+              offsets: tuple[float, ...] = (0.3,)) -> list[tuple[np.ndarray, np.ndarray]]:
     """The checker lattices of X-corners in ``grey`` (steps 1-2 of :func:`detect_corners`,
-    growth within ``max_side + 2`` places of each seed): ``(points (K, 2) integer pixels,
-    lattice coordinates (K, 2) from 0)`` each, largest first. The lattice's axes may run
-    either way round in the image."""
+    growth within ``max_side + 2`` places of each seed), grown once for each of ``offsets``
+    (:func:`_assemble`'s) from the same X-corners: ``(points (K, 2) integer pixels, lattice
+    coordinates (K, 2) from 0)`` each, largest first for each offset. The lattice's axes may
+    run either way round in the image."""
     g = np.ascontiguousarray(grey, dtype=np.float64)
     s, R, pts, v, _, _, why = _x_corners(g)
     if why or len(pts) < 4:
@@ -669,7 +673,8 @@ def _lattices(grey: np.ndarray, max_side: int) -> list[tuple[np.ndarray, np.ndar
     if len(pts) > most:  # clutter or noise: the strongest (bounds the time)
         keep = np.argsort(-R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)])[:most]
         pts, v = pts[keep], v[keep]
-    return [(pts[idx], c) for idx, c in _assemble(pts, max_side, s, v.max(axis=1) - v.min(axis=1))]
+    return [(pts[idx], c) for off in offsets
+            for idx, c in _assemble(pts, max_side, s, v.max(axis=1) - v.min(axis=1), off)]
 
 
 def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -> Detection:
