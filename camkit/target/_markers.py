@@ -203,6 +203,12 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
                         else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
         if corner_squares > 0 and (codes < 0).any():
             quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
+        # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
+        # lie up to a cell off where blur widens or narrows it).
+        read = codes >= 0
+        if read.any():
+            quads = quads.copy()
+            quads[read] = refine_quads(g, quads[read], n_cells)
         level: dict[int, list[np.ndarray]] = {}
         for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
             if code < 0:
@@ -216,6 +222,75 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
         if len(level) >= 2 and np.median(cells) >= 2.0:
             break
     return found, f, g
+
+
+def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int = 2) -> np.ndarray:
+    """The markers' quads (K, 4, 2), clockwise in the image, their corners moved to where the
+    lines of their four sides' edges meet. A quad from a dark region's extreme pixels lies
+    off the marker by up to a cell where blur widens or narrows the region (1-2 px on markers
+    of 15 px, blurred: their homography then puts the chessboard corners beside them 2-3 px
+    off). Each side's edge (the black border against the white outside) is found across the
+    side at eleven places between a fifth and four fifths along it, each at the strongest
+    rise from dark to light within 0.8 of a cell either side (the next edges out and in, a
+    black square beyond the margin and the code's bits, fall), to a tenth of a pixel by a
+    parabola through the peak; a line is fitted through them (least squares, weighted by the
+    rise), and the corners are where adjacent lines meet. Run ``iters`` times; a corner that
+    moves more than a cell in all, or a side whose edge is not found, leaves the quad as
+    it was."""
+    quads = np.asarray(quads, dtype=np.float64)
+    K = len(quads)
+    if K == 0:
+        return quads
+    out = quads.copy()
+    t = np.linspace(0.2, 0.8, 11)
+    side = np.hypot(*(np.roll(quads, -1, axis=1) - quads).transpose(2, 0, 1))  # (K, 4)
+    cell = side.mean(axis=1) / n_cells  # (K,)
+    o = np.linspace(-0.8, 0.8, 17)  # across the edge, in cells
+    for _ in range(iters):
+        a, b = out, np.roll(out, -1, axis=1)
+        d = b - a
+        length = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-12)
+        tang = d / length[..., None]
+        # Outward: clockwise corners in the image (y down) have the outside on the left of each
+        # side's direction as drawn, i.e. (ty, -tx).
+        nrm = np.stack([tang[..., 1], -tang[..., 0]], axis=-1)
+        centre = out.mean(axis=1, keepdims=True)
+        flip = ((a + b) / 2 - centre) * nrm
+        nrm = np.where((flip.sum(axis=-1) < 0)[..., None], -nrm, nrm)
+        base = a[:, :, None] + t[None, None, :, None] * d[:, :, None]  # (K, 4, T, 2)
+        step = o[None, None, None, :, None] * cell[:, None, None, None, None] * nrm[:, :, None, None]
+        pts = base[:, :, :, None] + step  # (K, 4, T, O, 2)
+        v = _sample(grey, pts[..., 0], pts[..., 1], "bilinear")
+        g = v[..., 2:] - v[..., :-2]  # rise outward, at o[1:-1]
+        k = np.argmax(g, axis=-1)
+        kk = np.clip(k, 1, g.shape[-1] - 2)
+        gm, g0, gp = (np.take_along_axis(g, (kk + j)[..., None], axis=-1)[..., 0] for j in (-1, 0, 1))
+        den = gm - 2 * g0 + gp
+        frac = np.where(den < 0, 0.5 * (gm - gp) / np.where(den < 0, den, -1.0), 0.0)
+        frac = np.where((k == kk) & (np.abs(frac) <= 1), frac, 0.0)
+        off = (o[1] - o[0]) * (kk + 1 + frac) + o[0]  # in cells
+        w = np.maximum(g0, 0.0)
+        edge = base + (off * cell[:, None, None])[..., None] * nrm[:, :, None]  # (K, 4, T, 2)
+        # A weighted line per side: through the weighted mean, along the principal direction.
+        ws = w.sum(axis=-1)
+        m = (edge * w[..., None]).sum(axis=2) / np.maximum(ws, 1e-12)[..., None]
+        r = edge - m[:, :, None]
+        cxx = (w * r[..., 0] ** 2).sum(-1)
+        cyy = (w * r[..., 1] ** 2).sum(-1)
+        cxy = (w * r[..., 0] * r[..., 1]).sum(-1)
+        ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
+        dirn = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # (K, 4, 2)
+        # Corner j: where side j - 1's line meets side j's.
+        p1, d1 = np.roll(m, 1, axis=1), np.roll(dirn, 1, axis=1)
+        p2, d2 = m, dirn
+        cross = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
+        diff = p2 - p1
+        s1 = (diff[..., 0] * d2[..., 1] - diff[..., 1] * d2[..., 0]) / np.where(np.abs(cross) > 1e-6, cross, np.nan)
+        new = p1 + s1[..., None] * d1
+        good = ((ws > 0).all(axis=1) & (np.sum(w > 0, axis=-1) >= 5).all(axis=1) & np.isfinite(new).all(axis=(1, 2))
+                & (np.hypot(*(new - quads).transpose(2, 0, 1)) <= 1.0 * cell[:, None]).all(axis=1))
+        out[good] = new[good]
+    return out
 
 
 def add_marker(found: dict[int, list[np.ndarray]], code: int, corners: np.ndarray) -> None:
@@ -329,43 +404,50 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
 
 
 def drop_poor_fits(out: np.ndarray, sig: np.ndarray, typical: TypicalSigma | None = None,
-                   win: np.ndarray | None = None, sm: np.ndarray | None = None) -> None:
+                   win: np.ndarray | None = None, sm: np.ndarray | None = None,
+                   group: np.ndarray | None = None) -> None:
     """Clear (NaN) the corners whose saddle fit's sigma is over ``_SIGMA_RATIO`` (twice) the
-    typical sigma, as the checkerboard's: ``typical``'s for each corner's window ``win`` (N,)
-    and smoothing ``sm`` (N,) (a fit's sigma depends on both), else the median of all."""
+    typical sigma, as the checkerboard's: ``typical``'s for each corner's window ``win`` (N,),
+    smoothing ``sm`` (N,) and group ``group`` (N,) (a fit's sigma depends on all three), else
+    the median of all."""
     good = np.isfinite(sig)
     if good.any():
         if typical is None:
             bad = good & (sig > _SIGMA_RATIO * np.median(sig[good]))
         else:
-            bad = good & ~typical.passes(sig, win, _SIGMA_RATIO, sm)
+            bad = good & ~typical.passes(sig, win, _SIGMA_RATIO, sm, group)
         out[bad] = np.nan
         sig[bad] = np.nan
 
 
 class TypicalSigma:
-    """A typical saddle-fit sigma for each window and smoothing: the larger of the median of
-    the corners' own fits (``sig`` (K,), at ``pts`` (K, 2), fitted with windows ``win`` (K,)
-    on the image ``full`` smoothed by ``sm`` (K,), default ``smoothing(win)``) and the median
-    of those fitted with a window within a pixel of it, refitted with it (and that smoothing),
-    computed once per pair. A fit's sigma grows with its window against the square (a
-    quadratic follows the smoothed junction less far out: on a small, noisy board, squares of
-    25-29 px, twice as high with 3 px as with 2 px, the two windows its rounding gives), and
-    with less smoothing (more of the noise is left), so a corner whose window rounds up is not
-    judged by the others' smaller ones. Only corners with a window near it are refitted: a
-    larger window on a smaller square fits worse still, and would excuse a poor fit."""
+    """A typical saddle-fit sigma for each window, smoothing and group: the larger of the
+    median of all the corners' own fits (``sig`` (K,), at ``pts`` (K, 2), fitted with windows
+    ``win`` (K,) on the image ``full`` smoothed by ``sm`` (K,), default ``smoothing(win)``) and
+    the median of the group's corners fitted with a window within a pixel of it, refitted with
+    it (and that smoothing), computed once per triple. A fit's sigma grows with its window
+    against the square (a quadratic follows the smoothed junction less far out: on a small,
+    noisy board, squares of 25-29 px, twice as high with 3 px as with 2 px, the two windows its
+    rounding gives), and with less smoothing (more of the noise is left), so a corner whose
+    window rounds up is not judged by the others' smaller ones. Only corners with a window near
+    it are refitted: a larger window on a smaller square fits worse still, and would excuse a
+    poor fit. ``group`` (K,), default all one: corners whose surroundings differ in a way the
+    fit sees (a ChArUco board's two chiralities: on a sheared board one has its markers in the
+    acute sectors, beside the corner) are judged against their own kind."""
 
     #: At most this many corners are refitted per window (evenly over those near it): a
     #: median needs no more, and the refits cost.
     MAX_REFITS = 16
 
     def __init__(self, full: np.ndarray, pts: np.ndarray, sig: np.ndarray, win: np.ndarray,
-                 smoothing: Callable[[int], float], sm: np.ndarray | None = None) -> None:
+                 smoothing: Callable[[int], float], sm: np.ndarray | None = None,
+                 group: np.ndarray | None = None) -> None:
         ok = np.isfinite(sig)
         self.full, self.pts, self.sig, self.win, self.smoothing = full, pts[ok], sig[ok], win[ok], smoothing
         self.sm = self._smoothings(win, sm)[ok]
+        self.group = (np.zeros(len(sig), dtype=np.int64) if group is None else np.asarray(group))[ok]
         self.floor = float(np.median(sig[ok])) if ok.any() else np.inf
-        self.cache: dict[tuple[int, float], float] = {}
+        self.cache: dict[tuple[int, float, int], float] = {}
 
     def _smoothings(self, win: np.ndarray, sm: np.ndarray | None) -> np.ndarray:
         if sm is not None:
@@ -375,33 +457,37 @@ class TypicalSigma:
             out[win == r] = self.smoothing(int(r))
         return out
 
-    def at(self, r: int, s: float | None = None) -> float:
-        """The typical sigma with window ``r`` and smoothing ``s`` (default ``smoothing(r)``);
-        inf where no corner gives one."""
+    def at(self, r: int, s: float | None = None, g: int = 0) -> float:
+        """The typical sigma with window ``r``, smoothing ``s`` (default ``smoothing(r)``) in
+        group ``g``; the floor (the median of all) where none of the group gives one."""
         s = self.smoothing(r) if s is None else float(s)
-        if (r, s) not in self.cache:
-            same = (self.win == r) & (self.sm == s)  # fitted with them already: their own sigmas
-            other = np.flatnonzero((np.abs(self.win - r) <= 1) & ~same)
+        if (r, s, g) not in self.cache:
+            mine = self.group == g
+            same = mine & (self.win == r) & (self.sm == s)  # fitted with them already: their own sigmas
+            other = np.flatnonzero(mine & (np.abs(self.win - r) <= 1) & ~same)
             other = other[np.linspace(0, len(other) - 1, min(len(other), self.MAX_REFITS)).astype(int)]
             sg = self.sig[same]
             if len(other):
                 sg = np.concatenate([sg, refine_patches(self.full, self.pts[other], r, s, iters=1)[1]])
             sg = sg[np.isfinite(sg)]
-            self.cache[(r, s)] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
-        return self.cache[(r, s)]
+            self.cache[(r, s, g)] = max(self.floor, float(np.median(sg))) if len(sg) else self.floor
+        return self.cache[(r, s, g)]
 
-    def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float, sm: np.ndarray | None = None) -> np.ndarray:
-        """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,) and smoothings ``sm``
-        (N,), default ``smoothing(win)``) are at most ``ratio`` times the typical sigma for
-        their pair; NaN sigmas do not pass. A pair is refitted only where one of its fits is
-        over ``ratio`` times the floor (the typical sigma is never below it)."""
+    def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float, sm: np.ndarray | None = None,
+               group: np.ndarray | None = None) -> np.ndarray:
+        """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,), smoothings ``sm`` (N,),
+        default ``smoothing(win)``, in groups ``group`` (N,), default all one) are at most
+        ``ratio`` times the typical sigma for their triple; NaN sigmas do not pass. A triple is
+        refitted only where one of its fits is over ``ratio`` times the floor (the typical
+        sigma is never below it)."""
         ok = np.isfinite(sig) & (sig <= ratio * self.floor)
         over = np.isfinite(sig) & ~ok
         if over.any():
             sm = self._smoothings(win, sm)
-            for r, s in {(int(a), float(b)) for a, b in zip(win[over], sm[over], strict=True)}:
-                k = over & (win == r) & (sm == s)
-                ok[k] = sig[k] <= ratio * self.at(r, s)
+            grp = np.zeros(len(sig), dtype=np.int64) if group is None else np.asarray(group)
+            for r, s, g in {(int(a), float(b), int(c)) for a, b, c in zip(win[over], sm[over], grp[over], strict=True)}:
+                k = over & (win == r) & (sm == s) & (grp == g)
+                ok[k] = sig[k] <= ratio * self.at(r, s, g)
         return ok
 
 
