@@ -21,22 +21,26 @@ Detection reads the markers first, then places the chessboard corners by their s
 2. the quad's cells are sampled through the homography of the unit square (3 x 3 samples in
    the middle of each cell), thresholded halfway between the black border and the white
    margin around the marker; a border that is not black, or bits more than the dictionary's
-   correction away from every code in all four turns, reject the quad;
+   correction away from every code in all four turns, reject the quad; a quad read has its
+   corners moved to where the lines of its sides' edges meet
+   (:func:`~camkit.target._markers.refine_quads`);
 3. the markers' ids are checked against the board: an id the board does not have is
    another board's; an id seen twice is dropped; and each marker must be confirmed by a
    neighbour (another marker within two squares such that one homography maps both markers'
    board corners onto their eight image corners within 15 % of a square, 2 px at least) and
    contradicted by fewer than confirm it. Where fewer than three are confirmed (markers too
    small or blurred to read one by one), the board is read as a whole: the chessboard's
-   lattice of X-junctions (the checkerboard detector's steps 1-2), each square bounded by
-   four of its corners sampled at the code's cells, and every placement of the lattice on the
+   lattice of X-junctions (the checkerboard detector's steps 1-2, its links tested for a black
+   and a white square either side inside the white margin too), each square bounded by four
+   of its corners sampled at the code's cells, and every placement of the lattice on the
    board (four turns, every shift) scored by the correlation of its marker squares with the
    codes it puts there; the best is taken only where it stands :data:`_BOARD_Z` standard
    deviations above chance and :data:`_BOARD_MARGIN` above the next placement, and its
    markers are confirmed as those read one by one;
-4. each chessboard corner next to a confirmed marker is predicted through the markers'
-   homographies (the least-squares homography of both markers touching it where two are
-   confirmed, else its marker's) and placed at the saddle point of the smoothed image
+4. each chessboard corner next to a confirmed marker is predicted from them (where both
+   markers touching it are confirmed, the midpoint of their corners nearest it, which lie
+   either side of it on a diagonal, else its marker's homography) and placed at the saddle
+   point of the smoothed image
    (camkit's sub-pixel estimator, window an eleventh of the square's image size, 2 to 5 px,
    smoothing 1.5 px, both less where they would reach the corner's markers: on a sheared
    board the markers in the acute sectors come near it), with its sigma; a corner that
@@ -45,9 +49,10 @@ Detection reads the markers first, then places the chessboard corners by their s
    colours on that circle disagree with its label (dark towards its black squares, light
    towards its white ones: where blur joins two thin margins, their crossing beside a
    marker is a saddle too), or whose fit's sigma is over twice the typical one for its
-   window and smoothing (:class:`~camkit.target._markers.TypicalSigma`: the median of the
-   corners beside markers, or where higher, of those with a window within a pixel of it
-   refitted with it; a fit's sigma grows with its window), is dropped;
+   window, smoothing and kind of corner (:class:`~camkit.target._markers.TypicalSigma`: the
+   median of the corners beside markers, or where higher, of those of its kind with a window
+   within a pixel of it refitted with it; a fit's sigma grows with its window, and on a
+   sheared board the corners with their markers in the acute sectors fit worse), is dropped;
 5. the chessboard past the markers read (markers too small, blurred or hidden to read): round
    by round, each corner next to found ones is predicted from them on the board (completing a
    square of three found corners, else continuing a row or column), found at its saddle point
@@ -262,9 +267,10 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
                 size[cid] = max(size[cid], side_px[m])
     cand = np.flatnonzero(pred_n > 0)
     five = pred_sum[cand] / pred_n[cand, None, None]
-    # Where two confirmed markers touch a corner (its four squares), the prediction is their
-    # least-squares homography's (one marker's quad read a pixel off at a thin margin weighs
-    # half; a wider neighbourhood bends away from a homography through a fisheye).
+    # Where two confirmed markers touch a corner (its four squares), the steps along the board
+    # are their least-squares homography's (one marker's quad read a pixel off at a thin margin
+    # weighs half; a wider neighbourhood bends away from a homography through a fisheye), and
+    # the place the midpoint of their corners nearest it (below).
     conf = np.asarray(confirmed)
     cxy = np.stack([cand % (sx - 1) + 1, cand // (sx - 1) + 1], axis=-1)
     sq = ms[conf]
@@ -279,6 +285,17 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         q = apply_homographies(Hn, cxy[rows, None] * s + offsets)
         good = np.isfinite(q).all(axis=(1, 2))
         five[rows[good]] = q[good]
+        if c == 2:
+            # The two markers' corners nearest the chessboard corner lie either side of it on a
+            # diagonal, a margin's diagonal away on the board: it is their midpoint, to second
+            # order in that distance, whatever the lens (through a fisheye the homography of
+            # both puts it 3-10 px off on squares of 100 px, the midpoint 0.8-1.9: seed 220).
+            own = obj[conf[mk]]  # (K, 2, 4, 2)
+            k = np.argmin(np.hypot(*(own - (cxy[rows, None, None] * s)).transpose(3, 0, 1, 2)), axis=2)  # (K, 2)
+            near = np.take_along_axis(img_q[mk], k[:, :, None, None], axis=2)[:, :, 0]  # (K, 2, 2)
+            mid = near.mean(axis=1)
+            ok = good & np.isfinite(mid).all(axis=1)
+            five[rows[ok]] += (mid[ok] - five[rows[ok], 0])[:, None]
     pred = five[:, 0]
     u, v = five[:, 1] - five[:, 2], five[:, 3] - five[:, 4]
     H, W = full.shape
@@ -309,13 +326,14 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
-    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of)
+    chir = _chirality(board, np.arange(N))
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of, chir)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth.
-    drop_poor_fits(out, sig, typical, win_of, sm_of)
+    drop_poor_fits(out, sig, typical, win_of, sm_of, chir)
     _grow(board, full, level, factor, out, sig, win_of, sm_of, typical)
-    drop_poor_fits(out, sig, typical, win_of, sm_of)
+    drop_poor_fits(out, sig, typical, win_of, sm_of, chir)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -352,10 +370,12 @@ def _read_board(board: Charuco, g: np.ndarray, f: int) -> dict[int, list[np.ndar
 
 def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float, np.ndarray, np.ndarray]]:
     """The chessboard's lattices in ``g`` (the checkerboard detector's X-corners and lattice
-    growth, :func:`~camkit.target.checkerboard._lattices`), their corners at their saddle
-    points, and every square bounded by four of them sampled at the code's cells through its
-    corners; each placement of a lattice on the board (four turns, every shift that keeps its
-    corners on the board's inner corners) puts a marker's code on half its squares, and is
+    growth, :func:`~camkit.target.checkerboard._lattices`, its seed links tested inside the
+    white margin and at the checkerboard's offset), their corners at their saddle points, and
+    every square bounded by four of them sampled at the code's cells through its corners; each
+    placement of a lattice on the board (four turns, every shift that keeps its corners on the
+    board's inner corners, all but a tenth of them at most a line beyond) puts a marker's code
+    on the squares it maps to marker squares, and is
     scored by their correlation. Yields, per lattice, ``(z, second, ids, corners)``: its best
     placement's score (each marker square's correlation with its code times the square root
     of its bits, summed, over the square root of their number: about a standard normal where
@@ -375,9 +395,13 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
     ms = board.marker_squares()
     at = np.full((board.squares_y, board.squares_x), -1)
     at[ms[:, 1], ms[:, 0]] = np.arange(len(ms))
+    at_pad = np.pad(at, 1, constant_values=-1)  # a line beyond the board either side: no marker
     codes = codes[:len(ms)]
     nx, ny = board.squares_x - 1, board.squares_y - 1
-    for pts, lat in _lattices(g, max(nx, ny)):
+    # The lattice's seed links are checked for a black and a white square either side of them:
+    # inside the white margin where the markers are sharp (they start beyond it), and at the
+    # checkerboard's three tenths of a square where they blur to grey.
+    for pts, lat in _lattices(g, max(nx, ny), (min(0.3, 0.6 * lo), 0.3)):
         if len(pts) < 4:
             continue
         G = np.full(tuple(lat.max(axis=0) + 2), -1, dtype=np.int64)
@@ -417,10 +441,18 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
             for _ in range(R):
                 pc = np.stack([-pc[:, 1], pc[:, 0]], axis=-1)
                 sq = np.stack([-sq[:, 1], sq[:, 0]], axis=-1)
-            for tx in range(1 - pc[:, 0].min(), nx - pc[:, 0].max() + 1):
-                for ty in range(1 - pc[:, 1].min(), ny - pc[:, 1].max() + 1):
+            # Every shift that keeps its corners on the board's inner corners, or all but a
+            # tenth of them (and one at least) a line beyond: a lattice may take in a point off
+            # the board (seed 289: a tenth column of one point on a board of nine).
+            spare = max(1, len(pc) // 10)
+            for tx in range(-pc[:, 0].min(), nx - pc[:, 0].max() + 2):
+                for ty in range(-pc[:, 1].min(), ny - pc[:, 1].max() + 2):
+                    off = ((pc[:, 0] + tx < 1) | (pc[:, 0] + tx > nx) | (pc[:, 1] + ty < 1)
+                           | (pc[:, 1] + ty > ny)).sum()
+                    if off > spare:
+                        continue
                     bx, by = (sq[:, 0] - 1) // 2 + tx, (sq[:, 1] - 1) // 2 + ty  # the board's squares
-                    ids = at[by, bx]
+                    ids = at_pad[by + 1, bx + 1]
                     has = ids >= 0
                     if has.sum() < 2:
                         continue
@@ -434,7 +466,7 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
         sq = np.stack([i, j], axis=-1) * 2 + 1
         for _ in range(R):
             sq = np.stack([-sq[:, 1], sq[:, 0]], axis=-1)
-        ids = at[(sq[:, 1] - 1) // 2 + ty, (sq[:, 0] - 1) // 2 + tx]
+        ids = at_pad[(sq[:, 1] - 1) // 2 + ty + 1, (sq[:, 0] - 1) // 2 + tx + 1]
         has = (ids >= 0) & okH
         mk = apply_homographies(Hs[has], np.broadcast_to(unit * (m / s) + lo, (int(has.sum()), 4, 2)))
         # The code's corner b (the board's slot) is the lattice's slot b - R.
@@ -454,6 +486,16 @@ def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
     white[ms[:, 1], ms[:, 0]] = True
     return np.where(white[cy, cx], -1.0, 1.0)
+
+
+def _chirality(board: Charuco, cand: np.ndarray) -> np.ndarray:
+    """0 or 1 for the corners ``cand``: which of the board's two kinds of corner each is (its
+    markers on its (+x, -y) and (-x, +y) sides, or on the other two). On a sheared board one
+    kind has its markers in the acute sectors, nearer the corner, and its saddle fits are
+    poorer (seed 55 of the corpus, squares of 18 px: sigmas of 0.10-0.11 px against 0.04-0.05
+    for the other kind, both within 0.05 px of the truth)."""
+    nx = board.squares_x - 1
+    return ((cand % nx + cand // nx) % 2).astype(np.int64)
 
 
 def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -574,9 +616,12 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         moved = np.hypot(*(q - start[k]).T)
         own = np.hypot(*(q - pred[k]).T)
         moved[own > _REACH * size[k]] = np.inf
-        theirs = np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)).min(axis=1)
+        # (A neighbour not predicted, as beside a single row or column, sets no bound: the
+        # reach does.)
+        theirs = np.fmin.reduce(np.hypot(*(q[:, None] - others[k]).transpose(2, 0, 1)), axis=1, initial=np.inf)
         moved[~(2.0 * own < theirs)] = np.inf
-        ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO, np.full(len(k), sm)) & (
+        ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO, np.full(len(k), sm),
+                                                 _chirality(board, cand[k])) & (
             moved <= np.maximum(1.5 * factor, 0.1 * size[k]))
         margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
         rho = np.maximum(0.6 * margin, 1.5)
