@@ -11,7 +11,8 @@ Scored per view against the render's truth:
 
 - wrong ids: returned corners more than 1 px from the true corner of their id;
 - found: the corners of tags wholly inside the frame (a tag is read whole: its corners carry
-  its id) whose side spans 2 px a cell or more;
+  its id) whose side spans 2 px a cell or more, seen at most 70 degrees from square on (the
+  line of sight to the corner, as ``benchmarks.charuco_corpus``; also without that condition);
 - corner error: median over noise-free views, 95th percentile over the others;
 - OpenCV (``cv2.aruco.ArucoDetector``, the AprilTag dictionary, ``markerBorderBits = 2``,
   corners refined by ``cornerSubPix``, OpenCV's default window; a third of them land 2-4 px
@@ -27,7 +28,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 
-from benchmarks.charuco_corpus import cli, place_and_render, score
+from benchmarks.charuco_corpus import MAX_OBLIQUITY, cli, obliquity, place_and_render, score
 from camkit.target import APRILTAG_FAMILIES, AprilGrid
 
 
@@ -39,8 +40,10 @@ def view(seed: int):
     return place_and_render(rng, grid, (20, 150), True, grid.tag_size)
 
 
-def eligible(grid: AprilGrid, camera, _pose, truth) -> np.ndarray:
-    """The corners of tags wholly inside the frame whose sides span 2 px a cell or more."""
+def eligible(grid: AprilGrid, camera, pose, truth, any_angle: bool = False) -> np.ndarray:
+    """The corners of tags wholly inside the frame whose sides span 2 px a cell or more, seen at
+    most :data:`~benchmarks.charuco_corpus.MAX_OBLIQUITY` from square on (unless
+    ``any_angle``)."""
     ids = grid.tag_point_ids()
     c = truth.corners_px[ids]  # (T, 4, 2)
     W, H = camera.width, camera.height
@@ -50,7 +53,7 @@ def eligible(grid: AprilGrid, camera, _pose, truth) -> np.ndarray:
     cells = grid.aruco.marker_size + 4
     ok = np.zeros(grid.n_points, dtype=bool)
     ok[ids[inside & (side >= 2.0 * cells)].ravel()] = True
-    return ok
+    return ok if any_angle else ok & (obliquity(pose, grid.object_points()) <= MAX_OBLIQUITY)
 
 
 def opencv_corners(grid: AprilGrid, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
