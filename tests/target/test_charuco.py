@@ -392,3 +392,29 @@ def test_each_kind_of_corner_is_judged_against_its_own_kind():
     det = board.detect(img)
     err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
     assert det.n_found >= 60 and err.max() < 0.5, (det.n_found, err.max())
+
+
+def test_a_board_with_few_markers_confirmed_is_read_as_a_board_too():
+    """Corpus view 428 (squares of 25 px, noise and JPEG): four markers confirmed, in two pairs at
+    the board's two ends, and the corners beside them did not link up (8 of 36). With fewer than
+    six confirmed the board is read as a whole too: every corner, within 0.1 px."""
+    from benchmarks.charuco_corpus import view
+
+    board, _, _, _, img, truth, _ = view(428)
+    det = board.detect(img)
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert det.n_found == board.n_points and err.max() < 0.1, (det.n_found, err.max())
+
+
+def test_a_grown_corners_squares_are_checked_along_its_measured_steps():
+    """Corpus view 28 (clean, a strong fisheye): past the last corners found, the lattice's
+    extrapolated steps run long towards the rim (55 px where the neighbour lies 41 px away),
+    and the black-square test's points half a step out landed in the next square: corners within
+    0.04 px of the truth were refused (55 found). The test now takes its steps from the corner's
+    found neighbours where they agree with the prediction (58)."""
+    from benchmarks.charuco_corpus import view
+
+    board, _, _, _, img, truth, _ = view(28)
+    det = board.detect(img)
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert det.n_found >= 58 and err.max() < 0.5, (det.n_found, err.max())
