@@ -234,62 +234,18 @@ def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int =
     rise from dark to light within 0.8 of a cell either side (the next edges out and in, a
     black square beyond the margin and the code's bits, fall), to a tenth of a pixel by a
     parabola through the peak; a line is fitted through them (least squares, weighted by the
-    rise), and the corners are where adjacent lines meet. Run ``iters`` times; a corner that
-    moves more than a cell in all, or a side whose edge is not found, leaves the quad as
-    it was."""
+    rise), and the corners are where adjacent lines meet (kernel
+    :func:`camkit._kernels.markers.refine_quads`). Run ``iters`` times; a round in which a
+    corner would lie more than a cell from the quad's, or a side's edge is not found, is not
+    taken. A quad that is not finite is returned as it came."""
     quads = np.asarray(quads, dtype=np.float64)
-    K = len(quads)
-    if K == 0:
-        return quads
     out = quads.copy()
-    t = np.linspace(0.2, 0.8, 11)
-    side = np.hypot(*(np.roll(quads, -1, axis=1) - quads).transpose(2, 0, 1))  # (K, 4)
-    cell = side.mean(axis=1) / n_cells  # (K,)
-    o = np.linspace(-0.8, 0.8, 17)  # across the edge, in cells
-    for _ in range(iters):
-        a, b = out, np.roll(out, -1, axis=1)
-        d = b - a
-        length = np.maximum(np.hypot(d[..., 0], d[..., 1]), 1e-12)
-        tang = d / length[..., None]
-        # Outward: clockwise corners in the image (y down) have the outside on the left of each
-        # side's direction as drawn, i.e. (ty, -tx).
-        nrm = np.stack([tang[..., 1], -tang[..., 0]], axis=-1)
-        centre = out.mean(axis=1, keepdims=True)
-        flip = ((a + b) / 2 - centre) * nrm
-        nrm = np.where((flip.sum(axis=-1) < 0)[..., None], -nrm, nrm)
-        base = a[:, :, None] + t[None, None, :, None] * d[:, :, None]  # (K, 4, T, 2)
-        step = o[None, None, None, :, None] * cell[:, None, None, None, None] * nrm[:, :, None, None]
-        pts = base[:, :, :, None] + step  # (K, 4, T, O, 2)
-        v = _sample(grey, pts[..., 0], pts[..., 1], "bilinear")
-        g = v[..., 2:] - v[..., :-2]  # rise outward, at o[1:-1]
-        k = np.argmax(g, axis=-1)
-        kk = np.clip(k, 1, g.shape[-1] - 2)
-        gm, g0, gp = (np.take_along_axis(g, (kk + j)[..., None], axis=-1)[..., 0] for j in (-1, 0, 1))
-        den = gm - 2 * g0 + gp
-        frac = np.where(den < 0, 0.5 * (gm - gp) / np.where(den < 0, den, -1.0), 0.0)
-        frac = np.where((k == kk) & (np.abs(frac) <= 1), frac, 0.0)
-        off = (o[1] - o[0]) * (kk + 1 + frac) + o[0]  # in cells
-        w = np.maximum(g0, 0.0)
-        edge = base + (off * cell[:, None, None])[..., None] * nrm[:, :, None]  # (K, 4, T, 2)
-        # A weighted line per side: through the weighted mean, along the principal direction.
-        ws = w.sum(axis=-1)
-        m = (edge * w[..., None]).sum(axis=2) / np.maximum(ws, 1e-12)[..., None]
-        r = edge - m[:, :, None]
-        cxx = (w * r[..., 0] ** 2).sum(-1)
-        cyy = (w * r[..., 1] ** 2).sum(-1)
-        cxy = (w * r[..., 0] * r[..., 1]).sum(-1)
-        ang = 0.5 * np.arctan2(2 * cxy, cxx - cyy)
-        dirn = np.stack([np.cos(ang), np.sin(ang)], axis=-1)  # (K, 4, 2)
-        # Corner j: where side j - 1's line meets side j's.
-        p1, d1 = np.roll(m, 1, axis=1), np.roll(dirn, 1, axis=1)
-        p2, d2 = m, dirn
-        cross = d1[..., 0] * d2[..., 1] - d1[..., 1] * d2[..., 0]
-        diff = p2 - p1
-        s1 = (diff[..., 0] * d2[..., 1] - diff[..., 1] * d2[..., 0]) / np.where(np.abs(cross) > 1e-6, cross, np.nan)
-        new = p1 + s1[..., None] * d1
-        good = ((ws > 0).all(axis=1) & (np.sum(w > 0, axis=-1) >= 5).all(axis=1) & np.isfinite(new).all(axis=(1, 2))
-                & (np.hypot(*(new - quads).transpose(2, 0, 1)) <= 1.0 * cell[:, None]).all(axis=1))
-        out[good] = new[good]
+    ok = np.isfinite(quads).all(axis=(1, 2))
+    if ok.any():
+        q = np.ascontiguousarray(quads[ok])
+        r = np.empty_like(q)
+        markers_kernels.refine_quads(np.ascontiguousarray(grey, dtype=np.float64), q, int(n_cells), int(iters), r)
+        out[ok] = r
     return out
 
 
