@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from camkit._kernels.calib import dlt_normal
+from camkit._kernels.lattice import bilinear
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -333,7 +334,7 @@ def refine_quads(img: np.ndarray, quads: np.ndarray, n_cells: int, iters: int,
                     bx, by = ax + t * dx, ay + t * dy
                     for oi in range(n_o):
                         o = (-0.8 + 0.1 * oi) * cell
-                        vals[oi] = _bilinear(img, bx + o * nx, by + o * ny)
+                        vals[oi] = bilinear(img, bx + o * nx, by + o * ny)
                     best, kmax = -np.inf, 0
                     for gi in range(n_o - 2):
                         gv = vals[gi + 2] - vals[gi]
@@ -395,17 +396,3 @@ def refine_quads(img: np.ndarray, quads: np.ndarray, n_cells: int, iters: int,
                 out[k, j, 0] = new[j, 0]
                 out[k, j, 1] = new[j, 1]
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _bilinear(img: np.ndarray, x: float, y: float) -> float:  # pragma: no cover - numba
-    """Bilinear sample at (x, y), pixel centres at integers, edge pixels replicated."""
-    H, W = img.shape
-    fx, fy = np.floor(x), np.floor(y)
-    tx, ty = x - fx, y - fy
-    x0 = min(max(int(fx), 0), W - 1)
-    x1 = min(max(int(fx) + 1, 0), W - 1)
-    y0 = min(max(int(fy), 0), H - 1)
-    y1 = min(max(int(fy) + 1, 0), H - 1)
-    top = img[y0, x0] * (1.0 - tx) + img[y0, x1] * tx
-    bot = img[y1, x0] * (1.0 - tx) + img[y1, x1] * tx
-    return top * (1.0 - ty) + bot * ty
