@@ -182,7 +182,8 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
     the factor of the finest pyramid level read (the scale of the detail that is left), and
     that level's image.
 
-    Quads (:func:`find_quads`) read as codes (:func:`read_markers`), from the coarsest level of
+    Quads (:func:`find_quads`) read as codes (:func:`read_markers`), their corners then moved to
+    where their sides' edges meet (:func:`refine_quads`), from the coarsest level of
     a 2x2-mean pyramid (longer side at most :data:`MARKER_LEVEL_SIDE`) down: a finer level is
     read where the coarser gave fewer than two markers or markers of under 2 px a cell across
     (bits blur together there); a finer level's reading replaces a coarser one that read no
