@@ -404,9 +404,12 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
     # The lattice's seed links are checked for a black and a white square either side of them:
     # inside the white margin where the markers are sharp (they start beyond it), and at the
     # checkerboard's three tenths of a square where they blur to grey.
+    seen: set[bytes] = set()
     for pts, lat in _lattices(g, max(nx, ny), (min(0.3, 0.6 * lo), 0.3)):
-        if len(pts) < 4:
+        key = np.ascontiguousarray(pts[np.lexsort(pts.T)]).tobytes()
+        if len(pts) < 4 or key in seen:  # (both offsets grow the same lattice where both hold)
             continue
+        seen.add(key)
         G = np.full(tuple(lat.max(axis=0) + 2), -1, dtype=np.int64)
         G[lat[:, 0], lat[:, 1]] = np.arange(len(lat))
         # The squares with four corners, in the lattice's slot order (i, j), (i+1, j), (i+1, j+1),
@@ -497,8 +500,7 @@ def _chirality(board: Charuco, cand: np.ndarray) -> np.ndarray:
     kind has its markers in the acute sectors, nearer the corner, and its saddle fits are
     poorer (seed 55 of the corpus, squares of 18 px: sigmas of 0.10-0.11 px against 0.04-0.05
     for the other kind, both within 0.05 px of the truth)."""
-    nx = board.squares_x - 1
-    return ((cand % nx + cand // nx) % 2).astype(np.int64)
+    return (_square_signs(board, cand) > 0).astype(np.int64)
 
 
 def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -601,9 +603,9 @@ def _measured_steps(board: Charuco, out: np.ndarray, cand: np.ndarray, q: np.nda
             good = np.isfinite(ln) & (ln >= 0.5 * lp) & (ln <= 1.5 * lp) & (cos >= np.cos(np.radians(30.0)))
             # Where this step was not predicted (beside a single row or column), the measured one
             # where it is about as long as the other step and at 45-135 degrees to it.
-            lo_ = np.hypot(*other.T)
-            cos_o = np.abs((st * other).sum(axis=1)) / np.maximum(ln * lo_, 1e-12)
-            good |= (~np.isfinite(lp) & np.isfinite(ln) & (ln >= 0.5 * lo_) & (ln <= 1.5 * lo_)
+            lo2 = np.hypot(*other.T)
+            cos_o = np.abs((st * other).sum(axis=1)) / np.maximum(ln * lo2, 1e-12)
+            good |= (~np.isfinite(lp) & np.isfinite(ln) & (ln >= 0.5 * lo2) & (ln <= 1.5 * lo2)
                      & (cos_o <= np.cos(np.radians(45.0))))
             got[good] += st[good]
             n += good

@@ -418,3 +418,18 @@ def test_a_grown_corners_squares_are_checked_along_its_measured_steps():
     det = board.detect(img)
     err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
     assert det.n_found >= 58 and err.max() < 0.5, (det.n_found, err.max())
+
+
+def test_refine_quads_returns_quads_it_cannot_refine_as_they_came():
+    """A quad that is not finite, or that has collapsed to a point or a line, has no edges to
+    find: it comes back unchanged, without an error from the kernel."""
+    g = np.full((40, 40), 0.5)
+    g[10:30, 10:30] = 0.1
+    good = np.array([[10.5, 9.5], [29.5, 10.5], [28.5, 29.5], [9.5, 28.5]])
+    bad = np.stack([np.full((4, 2), np.nan), np.full((4, 2), 20.0),
+                    np.array([[5.0, 5.0], [15.0, 5.0], [25.0, 5.0], [35.0, 5.0]])])
+    out = refine_quads(g, np.concatenate([good[None], bad]), 6)
+    np.testing.assert_array_equal(out[1:], bad)
+    true = np.array([[9.5, 9.5], [29.5, 9.5], [29.5, 29.5], [9.5, 29.5]])
+    assert np.abs(out[0] - true).max() < 0.2 < np.abs(good - true).max()
+    assert refine_quads(g, np.zeros((0, 4, 2)), 6).shape == (0, 4, 2)
