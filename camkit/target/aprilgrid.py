@@ -69,6 +69,7 @@ from camkit.target._markers import (
     consistent_points,
     drop_poor_fits,
     find_markers,
+    fit_inside,
     is_x_corner,
     lattice_rounds,
     narrowest_side,
@@ -280,8 +281,9 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # their four corners), reached from the corners found, junction by junction.
     # A fit's sigma is judged against the tags' corners refitted with its own window.
     typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor))
-    _grow(grid, full, out, sig, factor, win_of, typical)
-    drop_poor_fits(out, sig, typical, win_of)
+    res_of = np.full(N, np.nan)  # the grown points' fits' residuals (TypicalSigma.passes)
+    _grow(grid, full, out, sig, factor, win_of, res_of, typical)
+    drop_poor_fits(out, sig, typical, win_of, res=res_of)
     # Each tag read again through its corners as found (the quad's where one is missing): a
     # corner at another junction, or in a corner square, turns the tag's cells and border
     # away from its code; such a tag's corners go.
@@ -317,13 +319,13 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
             narrow_px: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, win_of: np.ndarray,
-            reach: float = 0.45) -> np.ndarray:
-    """The corners ``ids`` at their saddle points from ``pred``, written into ``out``, ``sig``
-    and ``win_of`` (the window) where the fit converges within ``reach`` of a corner square of
-    the prediction (the nearest other junction is a corner square away) and the point is an
-    X-junction on a circle inside its clean radius (the tag's border and the corner square,
-    the smaller).
-    Returns the windows used."""
+            res_of: np.ndarray | None = None, reach: float = 0.45) -> np.ndarray:
+    """The corners ``ids`` at their saddle points from ``pred``, written into ``out``, ``sig``,
+    ``win_of`` (the window) and ``res_of`` (the fit's residuals, where given) where the fit
+    converges within ``reach`` of a corner square of the prediction (the nearest other
+    junction is a corner square away) and the point is an X-junction on a circle inside its
+    clean radius (the tag's border and the corner square, the smaller). Returns the windows
+    used."""
     n_cells = grid.aruco.marker_size + 2 * BORDER_BITS
     clean = min(BORDER_BITS / n_cells, grid.tag_spacing) * tag_px
     H, W = full.shape
@@ -335,18 +337,17 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
         k = win == r
         # The smoothing follows the window where the junction is narrow (a corner square seen
         # obliquely: more smoothing than that pulls the saddle towards the tag).
-        q, sg = refine_patches(full, pred[k], int(r), _smoothing(int(r), factor))
+        q, sg, res = refine_patches(full, pred[k], int(r), _smoothing(int(r), factor), residuals=True)
         moved = np.hypot(*(q - pred[k]).T)
         ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, reach * grid.tag_spacing
                                                                           * tag_px[k]))
-        # The window and its bicubic support inside the image (past the edge the smoothing
-        # repeats the last row: a junction cut by the edge is pulled off).
-        m = r + 2
-        ok &= (q[:, 0] >= m) & (q[:, 0] <= W - 1 - m) & (q[:, 1] >= m) & (q[:, 1] <= H - 1 - m)
+        ok &= fit_inside(q, int(r), full.shape)
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
         win_of[ids[k][ok]] = r
+        if res_of is not None:
+            res_of[ids[k][ok]] = res[ok]
     return win
 
 
@@ -372,13 +373,15 @@ _GROWN_REACH = 0.25
 
 
 def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int,
-          win_of: np.ndarray, typical: TypicalSigma) -> None:
+          win_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the grid's points next to found ones (``out``, NaN where not found), round by round:
     each predicted from the points found beside it on the grid (:func:`extend_lattice`), fitted
     and tested as :func:`_refine` does, and kept where it ends twice as near its own predicted
     place as its neighbours' along the grid's rows and columns, within :data:`_GROWN_REACH` of a
     corner square of it (0.45 for a tag's own corners), on no other found point, and with a
-    fit's sigma at most 1.5 times ``typical``'s for its window (no code vouches for it). A
+    fit's sigma at most 1.5 times ``typical``'s for its window (no code vouches for it), or its
+    residuals (recorded in ``res_of``) at most that times the typical ones with a sigma of at
+    most a quarter of a pixel (a junction of less contrast: :meth:`TypicalSigma.passes`). A
     point is tried again only once more of its neighbours are found. The check of every point
     against its neighbours that follows (:func:`consistent_points`) covers these too."""
     nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
@@ -395,7 +398,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
             continue
         cand, pred, tag_px, narrow_px, others = cand[ok], pred[ok], tag_px[ok], narrow_px[ok], others[ok]
         tmp, tsig, twin = np.full_like(out, np.nan), np.full_like(sig, np.nan), np.zeros_like(win_of)
-        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, twin, _GROWN_REACH)
+        tres = np.full_like(sig, np.nan)
+        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, twin, tres, _GROWN_REACH)
         q = tmp[cand]
         got = np.isfinite(q).all(axis=1)
         own = np.hypot(*(q - pred).T)
@@ -403,7 +407,9 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
-        got[got] = typical.passes(tsig[cand[got]], twin[cand[got]], 1.5)  # no code vouches for it
+        got[got] = typical.passes(tsig[cand[got]], twin[cand[got]], 1.5,  # no code vouches for it
+                                  res=tres[cand[got]])
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
         win_of[cand[got]] = twin[cand[got]]
+        res_of[cand[got]] = tres[cand[got]]

@@ -250,12 +250,15 @@ def _quad_design(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return dx, dy, np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
 
 
-def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple[np.ndarray, np.ndarray]:
+def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6,
+                residuals: bool = False) -> tuple[np.ndarray, ...]:
     """Saddle point of a quadratic fitted on a (2r+1)^2 window centred on each estimate
     (sampled bicubically, so the window is symmetric about it); per-corner sigma from the
     fit's residuals propagated through the saddle equations, NaN where the fit has not
     converged (its saddle still half a pixel or more from the window's centre after ``iters``
-    steps of at most a pixel: no saddle near the estimate)."""
+    steps of at most a pixel: no saddle near the estimate). With ``residuals``, also the
+    residuals' standard deviation (the sigma without the saddle's curvature: how well a
+    quadratic describes the window, whatever the junction's contrast), NaN where the sigma is."""
     q = pts.astype(np.float64).copy()
     dx, dy, A = _quad_design(r)
     pinv = np.linalg.pinv(A)
@@ -280,7 +283,10 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6) -> tuple
         h11, h12, h22 = 2 * cc / Hdet, -b / Hdet, 2 * a / Hdet
         cvar = var * AtA_inv[3, 3]
         sigma = np.sqrt(0.5 * cvar * (h11 * h11 + 2 * h12 * h12 + h22 * h22))
-    return q, np.where(rest < 0.5, sigma, np.nan)
+    sigma = np.where(rest < 0.5, sigma, np.nan)
+    if residuals:
+        return q, sigma, np.where(np.isfinite(sigma), np.sqrt(var), np.nan)
+    return q, sigma
 
 
 def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray, contrast: np.ndarray,

@@ -121,3 +121,41 @@ def test_region_quads_from_runs_are_those_of_the_pixels():
             assert tuple(stats[k, 1:]) == (box[1].start, box[0].start, box[1].stop - 1, box[0].stop - 1)
             if stats[k, 0] > 0:
                 np.testing.assert_array_equal(quads[k], _quad_by_pixels(ys, xs))
+
+
+def test_a_saddles_residuals_follow_the_noise_and_its_sigma_the_contrast_too():
+    """The saddle fit's residuals (``refine_patches(..., residuals=True)``) measure how well a
+    quadratic describes the window, not how sharply the junction's contrast fixes its saddle:
+    the same X-junction (one the window's quadratic describes, so that the residuals are the
+    noise's) at a third of the contrast under the same noise leaves residuals as large
+    (within 25 %) while its sigma grows about threefold. A low-contrast
+    corner that fits as well as the others is kept on its residuals (TypicalSigma.passes with
+    ``res``) where its sigma alone would call it poor, and not past the sigma cap."""
+    from camkit.target._markers import MAX_LOW_CONTRAST_SIGMA, TypicalSigma, refine_patches
+
+    rng = np.random.default_rng(5)
+    yy, xx = np.mgrid[0:60, 0:60].astype(float)
+    centres = rng.uniform(24, 36, (40, 2))
+    res, sig = {}, {}
+    for contrast in (0.6, 0.2):
+        r_all, s_all = [], []
+        for c in centres:
+            g = 0.5 + 0.5 * contrast * np.tanh((xx - c[0]) * (yy - c[1]) / 12.0)
+            g = g + rng.normal(0, 0.02, g.shape)
+            q, s, rr = refine_patches(g, c[None] + 0.3, 2, 1.0, residuals=True)
+            assert np.hypot(*(q[0] - c)) < 1.0
+            r_all.append(rr[0])
+            s_all.append(s[0])
+        res[contrast], sig[contrast] = np.median(r_all), np.median(s_all)
+    assert 0.8 < res[0.2] / res[0.6] < 1.25, res
+    assert sig[0.2] / sig[0.6] > 2.2, sig
+    # The typical fit: the high-contrast corners (window 2, smoothing 1).
+    g = 0.5 + 0.3 * np.tanh((xx - 30.2) * (yy - 29.7) / 12.0) + rng.normal(0, 0.02, xx.shape)
+    pts = np.array([[30.2, 29.7]])
+    typ = TypicalSigma(g, pts, np.array([sig[0.6]]), np.array([2]), lambda r: 1.0)
+    low = np.array([sig[0.2]])
+    one = np.array([2])
+    assert not typ.passes(low, one, 2.0)
+    assert typ.passes(low, one, 2.0, res=np.array([res[0.2]]))
+    assert not typ.passes(low, one, 2.0, res=np.array([3 * res[0.6]]))  # residuals as poor
+    assert not typ.passes(np.array([MAX_LOW_CONTRAST_SIGMA * 1.01]), one, 2.0, res=np.array([res[0.2]]))
