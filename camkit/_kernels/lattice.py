@@ -117,6 +117,63 @@ def local_fit(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclud
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
+                     out: np.ndarray) -> bool:  # pragma: no cover - numba
+    """The homography lattice -> image fitted (normalised DLT) on the members of ``G`` within
+    ``reach`` of (a, b), (a, b) itself excluded, in coordinates relative to it: writes the
+    predicted place and the lengths of a step along either lattice axis there into ``out``
+    (x, y, step_a, step_b) and returns True, or False where fewer than five members span a
+    step on both axes or the fit is degenerate. Unlike a polynomial, it follows the steps'
+    shrinking or growing towards a vanishing point, which a plane seen through a pinhole
+    shows exactly and a fisheye's rim locally."""
+    S0, S1 = G.shape
+    m = 0
+    rel = np.empty(((2 * reach + 1) ** 2, 2))
+    P = np.empty(((2 * reach + 1) ** 2, 2))
+    lo_a, hi_a, lo_b, hi_b = reach + 1, -reach - 1, reach + 1, -reach - 1
+    for da in range(-reach, reach + 1):
+        for db in range(-reach, reach + 1):
+            if da == 0 and db == 0:
+                continue
+            aa, bb = a + da, b + db
+            if aa < 0 or bb < 0 or aa >= S0 or bb >= S1 or G[aa, bb] < 0:
+                continue
+            k = G[aa, bb]
+            rel[m, 0], rel[m, 1] = da, db
+            P[m, 0], P[m, 1] = pts[k, 0], pts[k, 1]
+            lo_a, hi_a = min(lo_a, da), max(hi_a, da)
+            lo_b, hi_b = min(lo_b, db), max(hi_b, db)
+            m += 1
+    if m < 5 or hi_a - lo_a < 1 or hi_b - lo_b < 1:
+        return False
+    mx, my, sc = 0.0, 0.0, 0.0
+    for i in range(m):
+        mx += P[i, 0] / m
+        my += P[i, 1] / m
+    for i in range(m):
+        sc += math.hypot(P[i, 0] - mx, P[i, 1] - my) / m
+    if not sc > 0:
+        return False
+    M = np.zeros((2 * m, 9))
+    for i in range(m):
+        u, v = rel[i, 0], rel[i, 1]
+        x, y = (P[i, 0] - mx) / sc, (P[i, 1] - my) / sc
+        M[2 * i, 0], M[2 * i, 1], M[2 * i, 2] = u, v, 1.0
+        M[2 * i, 6], M[2 * i, 7], M[2 * i, 8] = -x * u, -x * v, -x
+        M[2 * i + 1, 3], M[2 * i + 1, 4], M[2 * i + 1, 5] = u, v, 1.0
+        M[2 * i + 1, 6], M[2 * i + 1, 7], M[2 * i + 1, 8] = -y * u, -y * v, -y
+    h = np.linalg.svd(M)[2][8]
+    if not abs(h[8]) > 1e-12:
+        return False
+    x0, y0 = h[2] / h[8], h[5] / h[8]
+    # d(x, y)/d(a) and d(x, y)/d(b) at the relative origin, back in pixels.
+    sa = sc * math.hypot((h[0] - x0 * h[6]) / h[8], (h[3] - y0 * h[6]) / h[8])
+    sb = sc * math.hypot((h[1] - x0 * h[7]) / h[8], (h[4] - y0 * h[7]) / h[8])
+    out[0], out[1], out[2], out[3] = mx + sc * x0, my + sc * y0, sa, sb
+    return math.isfinite(out[0]) and math.isfinite(out[1]) and sa > 0 and sb > 0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _nearest(pts: np.ndarray, x: float, y: float) -> tuple[int, float]:  # pragma: no cover - numba
     best, bd = -1, np.inf
     for k in range(pts.shape[0]):
@@ -218,8 +275,14 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     position next to the lattice is predicted from the members within two steps (quadratic or
     affine map, else the straight continuation of a row or column) and takes the candidate
     nearest the prediction if it lies within a third of the local step and is free; where two
-    positions want one candidate, the nearer wins. A position is tried again only when it has
-    gained neighbours to predict it from."""
+    positions want one candidate, the nearer wins. Where five or more members fix a local
+    homography (:func:`local_homography`), it predicts the position too: it takes over where
+    the polynomial finds no candidate (steps that shrink or grow from one to the next, towards
+    a vanishing point or a fisheye's rim, which a polynomial extrapolates badly), and where
+    the two predictions take different candidates the position is left for a later round (a
+    rim's displaced junction one square along a row is nearer the polynomial's prediction
+    than the corner itself: real fisheye view 20). A position is tried again only when it
+    has gained neighbours to predict it from."""
     n = pts.shape[0]
     S = G.shape[0]
     R = S // 2
@@ -284,6 +347,7 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     claim_a = np.empty(n, dtype=np.int64)
     claim_b = np.empty(n, dtype=np.int64)
     coef = np.empty((6, 2))
+    hom = np.empty(4)
     grew = True
     while grew:
         grew = False
@@ -327,6 +391,14 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
                     if step < 0:
                         continue
                 k, dist = _nearest(pts, px, py)
+                if local_homography(G, pts, a, b, 2, hom):  # a second prediction, by a homography
+                    kh, dh = _nearest(pts, hom[0], hom[1])
+                    sh = min(hom[2], hom[3])
+                    if dist <= step / 3.0:
+                        if dh <= sh / 3.0 and kh != k:
+                            continue
+                    else:
+                        k, dist, step = kh, dh, sh
                 if not dist <= step / 3.0 or taken[k] or used[k]:
                     continue
                 if dist < claim_d[k]:

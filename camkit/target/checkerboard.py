@@ -334,8 +334,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        differ, the same way round: a diagonal link, a link two steps long and a sheared one
        fail) and whose square of nine is complete; then position after position is predicted
        from the lattice around it (a quadratic map of lattice to image: perspective and lens
-       distortion) and takes the candidate nearest the prediction within a third of the local
-       step. Lattices are grown from every corner not yet in one; each of at least half the
+       distortion; where a local homography is fixed too, it takes over where the quadratic
+       finds no candidate and must agree where both do: steps that shrink towards a vanishing
+       point or a fisheye's rim) and takes the candidate nearest the prediction within a third
+       of the local step. Lattices are grown from every corner not yet in one; each of at least half the
        size of the largest that could be the board (not more than two lines longer than it
        either way round) goes through steps 3-6, and where two pass as the
        board (the board and a second pattern), the one whose border is seen on more sides,
@@ -1127,7 +1129,9 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     Along a side, half a square out from the last corners lie the board's outer squares,
     alternating black and white; one and a half squares out lies the margin, uniform and as
     light as the white squares, where the board ends, or squares alternating the other way
-    where it does not. Positions come from the quadratic lattice map fitted near each sample.
+    where it does not (changing colour across the outer squares' middle shade, not only
+    shade: a dark background past a narrow margin is not more pattern). Positions come from
+    the quadratic lattice map fitted near each sample.
     One step out, where the pattern's next corners would be, X-corners at most of the places
     inside the image mean ``"more"`` whatever the shades say; where most of those places are
     inside the image and hold no X-corner, the pattern is seen to end there (the second dict,
@@ -1166,13 +1170,21 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             a_near = float(np.mean(sign * (n_ - n_.mean())))
             a_far = float(np.mean(sign * (f_ - f_.mean())))
             contrast = float(n_.max() - n_.min())
+            white = float(np.mean(np.sort(n_)[len(n_) // 2:]))
+            black = float(np.mean(np.sort(n_)[:max(len(n_) // 2, 1)]))
+            # Squares alternating the other way change colour, not only shade: beyond the dark
+            # outer squares most far samples are light, and beyond the light ones most are dark
+            # (a margin over a dark background, where a fisheye's rim throws the far samples
+            # past the sheet, varies in shade but stays dark: real fisheye 26).
+            mid = 0.5 * (white + black)
+            dark = n_ < mid
+            recoloured = bool(dark.any() and (~dark).any() and np.mean(f_[dark] > mid) >= 0.5
+                              and np.mean(f_[~dark] < mid) >= 0.5)
             if abs(a_near) < 0.1 * max(contrast, 1e-9) or contrast < min_contrast * (0.1 / _MIN_CONTRAST):
                 out[(axis, side)] = "unknown"
-            elif a_far * a_near < 0 and abs(a_far) > 0.4 * abs(a_near):
+            elif a_far * a_near < 0 and abs(a_far) > 0.4 * abs(a_near) and recoloured:
                 out[(axis, side)] = "more"
             else:
-                white = float(np.mean(np.sort(n_)[len(n_) // 2:]))
-                black = float(np.mean(np.sort(n_)[:max(len(n_) // 2, 1)]))
                 plain = abs(a_far) < 0.25 * abs(a_near)
                 light = float(np.mean(f_)) > black + 0.7 * (white - black)
                 out[(axis, side)] = "border" if plain and light else "unknown"
