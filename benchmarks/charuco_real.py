@@ -5,7 +5,9 @@ CharucoDetector returned (reference.json) that camkit misses, the ids camkit ret
 them, and the distance between the two detectors' corners on the ids both return. Then, as a
 measure of which is the more precise where no truth is known: the four img_0* views calibrated
 (camkit's Brown-Conrady fit, default parameters) once from each detector's corners on the
-same ids; the lower RMS reprojection error is the more self-consistent set of corners.
+same ids; the lower RMS reprojection error is the more self-consistent set of corners. And
+where the two disagree most in each photo, how far the image is from point-symmetric about
+each detector's corner (a true X-junction is a centre of point symmetry).
 
 Run: ``python -m benchmarks.charuco_real``.
 """
@@ -17,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from benchmarks.detect_real import point_asymmetry
 from camkit.calib.calibrate import calibrate
 from camkit.io import read_image
 from camkit.target import Charuco
+from camkit.target.checkerboard import _to_grey
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "charuco_opencv_tutorial"
 
@@ -27,17 +31,24 @@ DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "charuco
 def main() -> None:
     ref = json.loads((DATA / "reference.json").read_text())
     board = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
-    print("| image | OpenCV ids | camkit misses | camkit adds | median px | max px |\n|---|---|---|---|---|---|")
+    print("| image | OpenCV ids | camkit misses | camkit adds | median px | max px | point asymmetry at the max, "
+          "camkit / OpenCV |\n|---|---|---|---|---|---|---|")
     objs, mine_px, theirs_px = [], [], []
     for entry in ref["detections"]:
-        det = board.detect(read_image(DATA / "images" / entry["file"]))
+        img = read_image(DATA / "images" / entry["file"])
+        det = board.detect(img)
         ids = np.ravel(entry["charuco_ids"])
         mine = set(det.ids.tolist())
         both = [i for i in ids if i in mine]
         ref_px = dict(zip(ids.tolist(), np.reshape(entry["charuco_corners"], (-1, 2)), strict=True))
         d = np.array([np.hypot(*(det.corners[i] - ref_px[i])) for i in both])
         missed, added = sorted(set(ids.tolist()) - mine), sorted(mine - set(ids.tolist()))
-        print(f"| {entry['file']} | {len(ids)} | {missed} | {added} | {np.median(d):.3f} | {d.max():.3f} |")
+        # Where the two disagree most, which corner is the junction's centre of symmetry (circle of 3 px).
+        k = both[int(np.argmax(d))]
+        grey = np.ascontiguousarray(_to_grey(img), dtype=np.float64)
+        a_mine, a_theirs = (float(point_asymmetry(grey, p, 3.0)[0]) for p in (det.corners[k], ref_px[k]))
+        print(f"| {entry['file']} | {len(ids)} | {missed} | {added} | {np.median(d):.3f} | {d.max():.3f} "
+              f"| {a_mine:.3f} / {a_theirs:.3f} |")
         if entry["file"].startswith("img_0") and not missed:
             objs.append(board.object_points()[ids])
             mine_px.append(det.corners[ids])

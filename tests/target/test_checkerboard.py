@@ -402,8 +402,9 @@ def test_fisheye_rim_corners_are_the_junctions_where_opencv_is_off(shared_data):
     (they lie on a square's edge, not at its corner)."""
     import json
 
+    from benchmarks.detect_real import point_asymmetry
     from camkit.io import read_image
-    from camkit.target.checkerboard import _sample, _to_grey
+    from camkit.target.checkerboard import _to_grey
 
     folder = shared_data / "real_boards" / "boofcv_fisheye"
     item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
@@ -412,14 +413,9 @@ def test_fisheye_rim_corners_are_the_junctions_where_opencv_is_off(shared_data):
     det = detect_corners(img, Checkerboard(6, 4, 0.03))
     assert det.found and det.n_found == 24, det.message
     grey = np.ascontiguousarray(_to_grey(img), dtype=np.float64)
-    ang = np.arange(32) * 2 * np.pi / 32
 
     def asymmetry(p: np.ndarray) -> float:
-        worst = 0.0
-        for rho in (2.0, 3.0, 4.0):
-            v = _sample(grey, p[0] + rho * np.cos(ang), p[1] + rho * np.sin(ang), "bilinear")
-            worst = max(worst, float(np.abs(v - np.roll(v, 16)).mean() / (v.max() - v.min())))
-        return worst
+        return max(float(point_asymmetry(grey, p, rho)[0]) for rho in (2.0, 3.0, 4.0))
 
     ref = np.asarray(item["corners"], dtype=float).reshape(-1, 2)
     off = 0
