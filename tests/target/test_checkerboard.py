@@ -139,7 +139,10 @@ def test_fisheye_views_are_found_right_or_not_at_all():
     # lattice walk can skip a column where rows bend hard, or trim a partial lattice on the
     # wrong side. Such a lattice must be reported as not found, never returned with wrong
     # indices (before the bend and colour checks, 4 of these 24 views came back with corners
-    # tens to hundreds of pixels from their labels).
+    # tens to hundreds of pixels from their labels). Every returned corner lies within 0.3 px
+    # of its truth (measured: 0.087 px at most where the lattice stops short of the rim; since
+    # the growth's homography, view 11 of seed 4 gives 40 corners instead of 29, the 11 more
+    # at the rim where squares are 6-10 px across one way, 0.10-0.23 px off).
     cam = default_camera("kannala-brandt")
     board = Checkerboard(9, 6, 0.03)
     found = 0
@@ -150,10 +153,10 @@ def test_fisheye_views_are_found_right_or_not_at_all():
             if det.found:
                 found += 1
                 err = np.hypot(*(det.corners - truth.corners_px).T)
-                assert np.nanmax(err) < 0.2, det.message
+                assert np.nanmax(err) < 0.3, det.message
             else:
                 assert det.message.startswith("not found")
-    assert found >= 13  # measured: 13 of 24 (the rest: too small, or bent beyond the walk)
+    assert found >= 21  # measured: 21 of 24 (the rest: too small, or bent beyond the walk)
 
 
 def test_stress_sample_never_a_wrong_board():
