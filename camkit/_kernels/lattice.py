@@ -66,6 +66,31 @@ def sample_points(img: np.ndarray, x: np.ndarray, y: np.ndarray, cubic: bool,
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _members(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclude: bool, rel: np.ndarray,
+             P: np.ndarray) -> tuple[int, int, int]:  # pragma: no cover - numba
+    """The members of ``G`` within ``reach`` of (a, b) (without (a, b) itself if ``exclude``):
+    their lattice offsets from (a, b) into ``rel`` and image places into ``P``; returns their
+    number and how many steps they span along either axis."""
+    S0, S1 = G.shape
+    m = 0
+    lo_a, hi_a, lo_b, hi_b = reach + 1, -reach - 1, reach + 1, -reach - 1
+    for da in range(-reach, reach + 1):
+        for db in range(-reach, reach + 1):
+            if exclude and da == 0 and db == 0:
+                continue
+            aa, bb = a + da, b + db
+            if aa < 0 or bb < 0 or aa >= S0 or bb >= S1 or G[aa, bb] < 0:
+                continue
+            k = G[aa, bb]
+            rel[m, 0], rel[m, 1] = da, db
+            P[m, 0], P[m, 1] = pts[k, 0], pts[k, 1]
+            lo_a, hi_a = min(lo_a, da), max(hi_a, da)
+            lo_b, hi_b = min(lo_b, db), max(hi_b, db)
+            m += 1
+    return m, hi_a - lo_a, hi_b - lo_b
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def local_fit(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclude: bool, min_count: int,
               coef: np.ndarray) -> int:  # pragma: no cover - numba
     """Fit the map lattice -> image on the members of ``G`` within ``reach`` of (a, b) (without
@@ -74,31 +99,12 @@ def local_fit(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclud
     quadratic fit (seven or more members spanning two steps on both axes), 1 for an affine one
     (``min_count`` or more members spanning a step on both axes), 0 where they do not pin a map
     down."""
-    S0, S1 = G.shape
-    m = 0
     rel = np.empty(((2 * reach + 1) ** 2, 2))
     P = np.empty(((2 * reach + 1) ** 2, 2))
-    lo_a, hi_a, lo_b, hi_b = reach + 1, -reach - 1, reach + 1, -reach - 1
-    for da in range(-reach, reach + 1):
-        for db in range(-reach, reach + 1):
-            if exclude and da == 0 and db == 0:
-                continue
-            aa, bb = a + da, b + db
-            if aa < 0 or bb < 0 or aa >= S0 or bb >= S1:
-                continue
-            k = G[aa, bb]
-            if k < 0:
-                continue
-            rel[m, 0] = da
-            rel[m, 1] = db
-            P[m, 0] = pts[k, 0]
-            P[m, 1] = pts[k, 1]
-            lo_a, hi_a = min(lo_a, da), max(hi_a, da)
-            lo_b, hi_b = min(lo_b, db), max(hi_b, db)
-            m += 1
-    if m < min_count or hi_a - lo_a < 1 or hi_b - lo_b < 1:
+    m, span_a, span_b = _members(G, pts, a, b, reach, exclude, rel, P)
+    if m < min_count or span_a < 1 or span_b < 1:
         return 0
-    quadratic = m >= 7 and hi_a - lo_a >= 2 and hi_b - lo_b >= 2
+    quadratic = m >= 7 and span_a >= 2 and span_b >= 2
     nt = 6 if quadratic else 3
     A = np.empty((m, nt))
     for i in range(m):
@@ -126,25 +132,10 @@ def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
     step on both axes or the fit is degenerate. Unlike a polynomial, it follows the steps'
     shrinking or growing towards a vanishing point, which a plane seen through a pinhole
     shows exactly and a fisheye's rim locally."""
-    S0, S1 = G.shape
-    m = 0
     rel = np.empty(((2 * reach + 1) ** 2, 2))
     P = np.empty(((2 * reach + 1) ** 2, 2))
-    lo_a, hi_a, lo_b, hi_b = reach + 1, -reach - 1, reach + 1, -reach - 1
-    for da in range(-reach, reach + 1):
-        for db in range(-reach, reach + 1):
-            if da == 0 and db == 0:
-                continue
-            aa, bb = a + da, b + db
-            if aa < 0 or bb < 0 or aa >= S0 or bb >= S1 or G[aa, bb] < 0:
-                continue
-            k = G[aa, bb]
-            rel[m, 0], rel[m, 1] = da, db
-            P[m, 0], P[m, 1] = pts[k, 0], pts[k, 1]
-            lo_a, hi_a = min(lo_a, da), max(hi_a, da)
-            lo_b, hi_b = min(lo_b, db), max(hi_b, db)
-            m += 1
-    if m < 5 or hi_a - lo_a < 1 or hi_b - lo_b < 1:
+    m, span_a, span_b = _members(G, pts, a, b, reach, True, rel, P)
+    if m < 5 or span_a < 1 or span_b < 1:
         return False
     mx, my, sc = 0.0, 0.0, 0.0
     for i in range(m):
