@@ -337,9 +337,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        distortion; where a local homography is fixed too, it takes over where the quadratic
        finds no candidate and must agree where both do: steps that shrink towards a vanishing
        point or a fisheye's rim) and takes the candidate nearest the prediction within a third
-       of the local step. Lattices are grown from every corner not yet in one; each of at least half the
-       size of the largest that could be the board (not more than two lines longer than it
-       either way round) goes through steps 3-6, and where two pass as the
+       of the local step. Lattices are grown from every corner not yet in one; each of at
+       least half the size of the largest that could be the board (not more than two lines
+       longer than it either way round) goes through steps 3-6, and where two pass as the
        board (the board and a second pattern), the one whose border is seen on more sides,
        less the sides where it runs out of the image, wins; on a tie the board is not found.
     3. Sub-pixel: the saddle point of a quadratic fitted on a window centred on each corner, the
@@ -1170,8 +1170,9 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             a_near = float(np.mean(sign * (n_ - n_.mean())))
             a_far = float(np.mean(sign * (f_ - f_.mean())))
             contrast = float(n_.max() - n_.min())
-            white = float(np.mean(np.sort(n_)[len(n_) // 2:]))
-            black = float(np.mean(np.sort(n_)[:max(len(n_) // 2, 1)]))
+            ordered = np.sort(n_)
+            white = float(np.mean(ordered[len(n_) // 2:]))
+            black = float(np.mean(ordered[:max(len(n_) // 2, 1)]))
             # Squares alternating the other way change colour, not only shade: beyond the dark
             # outer squares most far samples are light, and beyond the light ones most are dark
             # (a margin over a dark background, where a fisheye's rim throws the far samples
