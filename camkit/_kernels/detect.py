@@ -18,27 +18,47 @@ def gaussian_taps(sigma: float) -> np.ndarray:  # pragma: no cover - numba
     return k / k.sum()
 
 
+#: Rows per band of :func:`gaussian_blur` (its row pass for a band and the band's margins is
+#: kept in cache for the column pass).
+_BAND = 64
+
+
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns."""
+    """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns, band by band
+    of rows (each band's row pass, with its margins, stays in cache for its column pass).
+    Each pass adds tap after tap along whole rows (the inner loop runs along x, contiguous,
+    so it is vectorised), each pixel's sum in tap order, as a pixel-by-pixel loop adds it."""
     H, W = img.shape
     k = gaussian_taps(sigma)
     R = k.shape[0] // 2
-    tmp = np.empty((H, W))
-    for y in prange(H):
-        for x in range(W):
-            acc = 0.0
+    nb = (H + _BAND - 1) // _BAND
+    for b in prange(nb):
+        y0 = b * _BAND
+        y1 = min(y0 + _BAND, H)
+        lo = max(y0 - R, 0)
+        hi = min(y1 + R, H)
+        tmp = np.empty((hi - lo, W))
+        row = np.empty(W + 2 * R)
+        for y in range(lo, hi):
+            for x in range(W + 2 * R):
+                row[x] = img[y, min(max(x - R, 0), W - 1)]
+            acc = tmp[y - lo]
+            for x in range(W):
+                acc[x] = 0.0
             for i in range(2 * R + 1):
-                xx = min(max(x + i - R, 0), W - 1)
-                acc += k[i] * img[y, xx]
-            tmp[y, x] = acc
-    for y in prange(H):
-        for x in range(W):
-            acc = 0.0
+                ki = k[i]
+                for x in range(W):
+                    acc[x] += ki * row[x + i]
+        for y in range(y0, y1):
+            acc = out[y]
+            for x in range(W):
+                acc[x] = 0.0
             for i in range(2 * R + 1):
-                yy = min(max(y + i - R, 0), H - 1)
-                acc += k[i] * tmp[yy, x]
-            out[y, x] = acc
+                ki = k[i]
+                src = tmp[min(max(y + i - R, 0), H - 1) - lo]
+                for x in range(W):
+                    acc[x] += ki * src[x]
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

@@ -234,11 +234,18 @@ def _contrast_floor(contrast: np.ndarray, noise: float) -> float:
     return max(min(_MIN_CONTRAST, _MIN_CONTRAST_FRACTION * top), _NOISE_FACTOR * noise)
 
 
+#: About how many neighbour differences :func:`_image_noise` takes its median over.
+_NOISE_SAMPLES = 500_000
+
+
 def _image_noise(grey: np.ndarray) -> float:
     """The noise's standard deviation per pixel: the median absolute difference of horizontal
-    neighbours (every fourth row), as a Gaussian's sigma (1.4826 MAD, over sqrt 2 for the
-    difference). JPEG's smoothing of flat areas makes it read low."""
-    d = np.abs(np.diff(grey[::4], axis=1))
+    neighbours (every fourth row; on a large image every 4m-th, m odd, for about half a
+    million differences: as many as a 2 MP image gives, and the median's error under 0.2 %),
+    as a Gaussian's sigma (1.4826 MAD, over sqrt 2 for the difference). JPEG's smoothing of
+    flat areas makes it read low."""
+    m = max(1, -(-grey.size // (4 * _NOISE_SAMPLES))) | 1
+    d = np.abs(np.diff(grey[::4 * m], axis=1))
     return float(1.4826 * np.median(d) / np.sqrt(2.0))
 
 
