@@ -455,6 +455,25 @@ def test_scale_the_same_photos_from_320x240_to_12_mp(shared_data, size):
         assert np.nanmedian(d) <= 0.06 * coarse ** 1.5 and np.nanmax(d) <= 0.35 * coarse, (k, size, d)
 
 
+@pytest.mark.parametrize(("shape", "sigma"), [((200, 131), 1.5), ((64, 5), 2.5), ((3, 70), 4.0), ((129, 1), 1.0)])
+def test_gaussian_blur_is_the_separable_gaussian_with_edges_replicated(shape, sigma):
+    """The whole-image blur (run band by band of 64 rows: shapes across, along and under a
+    band's edges, and narrower than the kernel) equals SciPy's correlation with the same
+    normalised taps (out to 3 sigma), rows then columns, edges replicated."""
+    from scipy.ndimage import correlate1d
+
+    from camkit._kernels import detect as detect_kernels
+
+    img = np.random.default_rng(5).uniform(size=shape)
+    R = int(np.ceil(3 * sigma))
+    k = np.exp(-0.5 * (np.arange(-R, R + 1) / sigma) ** 2)
+    k /= k.sum()
+    ref = correlate1d(correlate1d(img, k, axis=1, mode="nearest"), k, axis=0, mode="nearest")
+    out = np.empty_like(img)
+    detect_kernels.gaussian_blur(img, sigma, out)
+    np.testing.assert_allclose(out, ref, atol=1e-13, rtol=0)
+
+
 def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
     """The detector's shortcuts agree with the kernels they stand for: the Gaussian blur of
     patches (their margins read from the image, edges replicated) equals the whole image
