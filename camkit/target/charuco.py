@@ -61,7 +61,11 @@ Detection reads the markers first, then places the chessboard corners by their s
    and then on the full image, and kept where it lies within 0.15 of a square of its
    prediction, twice as near it as its neighbours' predicted places, on no other found
    corner, with its black squares dark where the lattice puts them, and passes the tests of
-   step 4.
+   step 4, its sigma judged as there or, where over, its residuals (at most twice the
+   typical) with the sigma the image's noise gives its fit at most a quarter of a pixel.
+   Each corner's sigma is its fit's own (its residuals taken as noise): where the quadratic
+   misfits a shallow saddle it overstates the error (0.6-0.9 px at 0.05-0.15 px off: corpus
+   view 89) and is an upper bound.
 
 Every returned corner is labelled by markers read where the board's layout puts them, directly
 or through a chain of squares from one, so a board half out of the frame gives every corner it
@@ -87,6 +91,7 @@ from camkit.target._markers import (
     drop_poor_fits,
     find_markers,
     fit_inside,
+    image_noise,
     lattice_rounds,
     quad_area,
     recover_markers,
@@ -331,12 +336,14 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
     chir = _chirality(board, np.arange(N))
-    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of, chir)
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of, chir, image_noise(full))
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth. A grown corner whose sigma is over the typical one is
     # kept where its fit's residuals are not (a junction of less contrast fits as well, its
-    # saddle less sure: TypicalSigma), up to a quarter-pixel sigma; not a corner beside
+    # saddle less sure: TypicalSigma), up to a quarter-pixel sigma from the image's noise
+    # (the residuals' misfit, which the fit's own sigma counts as noise, moves no saddle of a
+    # point-symmetric junction: _markers.noise_sigma); not a corner beside
     # markers, which passes fewer tests: one marker's blurred quad, its corner read 3.6 px
     # off, can predict the chessboard corner onto the white margin beside it, where the fit
     # finds a saddle that passes the circle's tests (seed 55 of the corpus: 6.8 px off,
@@ -642,7 +649,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     square's steps along the board's x and y) put them (:func:`_dark_squares`), and its
     fit's sigma at most :data:`_SIGMA_RATIO` times ``typical`` for its window (recorded in
     ``win_of``), or its residuals (recorded in ``res_of``) at most that times the typical ones
-    with a sigma of at most a quarter of a pixel (:meth:`TypicalSigma.passes`)."""
+    with the sigma the image's noise gives the fit at most a quarter of a pixel
+    (:meth:`TypicalSigma.passes`, :func:`~camkit.target._markers.noise_sigma`)."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     clear = _clearance(board, cand, u, v)

@@ -245,7 +245,7 @@ def _image_noise(grey: np.ndarray) -> float:
     as a Gaussian's sigma (1.4826 MAD, over sqrt 2 for the difference). JPEG's smoothing of
     flat areas makes it read low."""
     m = max(1, -(-grey.size // (4 * _NOISE_SAMPLES))) | 1
-    d = np.abs(np.diff(grey[::4 * m], axis=1))
+    d = np.abs(np.diff(grey[::4 * m].astype(np.float64), axis=1))  # (a uint8 image's differences wrap)
     return float(1.4826 * np.median(d) / np.sqrt(2.0))
 
 
