@@ -172,3 +172,197 @@ def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:
             for c in range(n):
                 acc += np.int64(img[y, x, c])
             hist[acc] += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, float]:  # pragma: no cover - numba
+    """The bilinear interpolant of ``img`` at (x, y) and its central differences, (value, d/dx,
+    d/dy): the bilinear interpolant of the image's central-difference images. The caller keeps
+    (x, y) within [1, W - 3] x [1, H - 3]."""
+    x0 = math.floor(x)
+    y0 = math.floor(y)
+    fx = x - x0
+    fy = y - y0
+    v = np.empty((4, 4))  # rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2
+    for j in range(4):
+        for i in range(4):
+            v[j, i] = img[y0 - 1 + j, x0 - 1 + i]
+    # The bilinear weights of the 2x2 cell, applied to the value and to the central differences.
+    val = 0.0
+    gx = 0.0
+    gy = 0.0
+    for j in range(2):
+        wy = fy if j == 1 else 1.0 - fy
+        for i in range(2):
+            w = wy * (fx if i == 1 else 1.0 - fx)
+            val += w * v[j + 1, i + 1]
+            gx += w * 0.5 * (v[j + 1, i + 2] - v[j + 1, i])
+            gy += w * 0.5 * (v[j + 2, i + 1] - v[j, i + 1])
+    return val, gx, gy
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
+                    iters: int, tol: float, out: np.ndarray, cov: np.ndarray,
+                    wres: np.ndarray) -> None:  # pragma: no cover - numba
+    """Move each point to where the image is point-symmetric through it: Gauss-Newton on the
+    translation t of ``sum_i (I(p + t + a_i) - I(p + t + b_i))^2`` over its ``m[k]`` pairs of
+    offsets ``a[k, i]``, ``b[k, i]`` (px; b the mirror image of a through the point on the
+    board's local map), bilinear image values with central-difference gradients. ``img`` is
+    the image smoothed with the separable kernel ``taps`` (odd length; ``[1.0]``: not
+    smoothed), which the covariance carries.
+
+    Writes ``out[k]`` (NaN where a sample leaves the image, the normal matrix is singular or
+    it has not converged to ``tol`` px in ``iters`` steps), ``cov[k]`` = (xx, xy, yy) of the
+    point's covariance per unit white pixel noise (the linearised estimator's, through the
+    bilinear weights of both samples of every pair and the smoothing), and ``wres[k]``: the
+    white pixel noise that the final residuals would imply (their sum of squares over the sum
+    of the squared weights they carry, the smoothing's sum of squared weights included)."""
+    H, W = img.shape
+    R = taps.shape[0] // 2
+    t2 = 0.0
+    for i in range(taps.shape[0]):
+        t2 += taps[i] * taps[i]
+    for k in prange(p0.shape[0]):
+        out[k, 0] = np.nan
+        out[k, 1] = np.nan
+        cov[k, 0] = np.nan
+        cov[k, 1] = np.nan
+        cov[k, 2] = np.nan
+        wres[k] = np.nan
+        n = m[k]
+        if n < 3:
+            continue
+        px = p0[k, 0]
+        py = p0[k, 1]
+        good = False
+        inside = True
+        for _it in range(iters):
+            sxx = 0.0
+            sxy = 0.0
+            syy = 0.0
+            rx = 0.0
+            ry = 0.0
+            for i in range(n):
+                xa = px + a[k, i, 0]
+                ya = py + a[k, i, 1]
+                xb = px + b[k, i, 0]
+                yb = py + b[k, i, 1]
+                if (min(xa, xb) < 1.0 or max(xa, xb) > W - 3.0 or min(ya, yb) < 1.0 or max(ya, yb) > H - 3.0
+                        or not (xa == xa and xb == xb and ya == ya and yb == yb)):
+                    inside = False
+                    break
+                va, gxa, gya = _bilinear_grad(img, xa, ya)
+                vb, gxb, gyb = _bilinear_grad(img, xb, yb)
+                r = va - vb
+                jx = gxa - gxb
+                jy = gya - gyb
+                sxx += jx * jx
+                sxy += jx * jy
+                syy += jy * jy
+                rx += jx * r
+                ry += jy * r
+            if not inside:
+                break
+            det = sxx * syy - sxy * sxy
+            if not det > 1e-12 * (sxx + syy) * (sxx + syy):
+                break
+            dx = -(syy * rx - sxy * ry) / det
+            dy = -(sxx * ry - sxy * rx) / det
+            px += dx
+            py += dy
+            if dx * dx + dy * dy < tol * tol:
+                good = True
+                break
+        if not good:
+            continue
+        # The covariance at the solution: t = -(J^T J)^-1 J^T r, r linear in the pixels through
+        # the bilinear weights, so Cov = M^-1 (sum_pix g g^T) M^-1 per unit noise, g the
+        # pixel's weight in J^T r. The pixels touched lie in the samples' bounding box.
+        xmin = 1e300
+        ymin = 1e300
+        xmax = -1e300
+        ymax = -1e300
+        for i in range(n):
+            xmin = min(xmin, px + a[k, i, 0], px + b[k, i, 0])
+            xmax = max(xmax, px + a[k, i, 0], px + b[k, i, 0])
+            ymin = min(ymin, py + a[k, i, 1], py + b[k, i, 1])
+            ymax = max(ymax, py + a[k, i, 1], py + b[k, i, 1])
+        if xmin < 1.0 or xmax > W - 3.0 or ymin < 1.0 or ymax > H - 3.0:
+            continue
+        bx = math.floor(xmin)
+        by = math.floor(ymin)
+        gw = math.floor(xmax) - bx + 2
+        gh = math.floor(ymax) - by + 2
+        g = np.zeros((gh, gw, 2))
+        sxx = 0.0
+        sxy = 0.0
+        syy = 0.0
+        rr = 0.0
+        ww = 0.0
+        for i in range(n):
+            xa = px + a[k, i, 0]
+            ya = py + a[k, i, 1]
+            xb = px + b[k, i, 0]
+            yb = py + b[k, i, 1]
+            va, gxa, gya = _bilinear_grad(img, xa, ya)
+            vb, gxb, gyb = _bilinear_grad(img, xb, yb)
+            r = va - vb
+            jx = gxa - gxb
+            jy = gya - gyb
+            sxx += jx * jx
+            sxy += jx * jy
+            syy += jy * jy
+            rr += r * r
+            for s in range(2):
+                xs = xa if s == 0 else xb
+                ys = ya if s == 0 else yb
+                sign = 1.0 if s == 0 else -1.0
+                x0 = math.floor(xs)
+                y0 = math.floor(ys)
+                fx = xs - x0
+                fy = ys - y0
+                for j in range(2):
+                    wy = fy if j == 1 else 1.0 - fy
+                    for q in range(2):
+                        w = sign * wy * (fx if q == 1 else 1.0 - fx)
+                        ww += w * w
+                        g[y0 - by + j, x0 - bx + q, 0] += w * jx
+                        g[y0 - by + j, x0 - bx + q, 1] += w * jy
+        det = sxx * syy - sxy * sxy
+        if not det > 0.0:
+            continue
+        ixx = syy / det
+        ixy = -sxy / det
+        iyy = sxx / det
+        # Through the smoothing: a raw pixel's weight is the smoothed grid's weights convolved
+        # with the (symmetric) taps, over the grid grown by the kernel's radius.
+        tmp = np.zeros((gh, gw + 2 * R, 2))
+        for yy in range(gh):
+            for xx in range(gw):
+                for i in range(2 * R + 1):
+                    tmp[yy, xx + i, 0] += taps[i] * g[yy, xx, 0]
+                    tmp[yy, xx + i, 1] += taps[i] * g[yy, xx, 1]
+        cxx = 0.0
+        cxy = 0.0
+        cyy = 0.0
+        for yy in range(gh + 2 * R):
+            for xx in range(gw + 2 * R):
+                g0 = 0.0
+                g1 = 0.0
+                for i in range(2 * R + 1):
+                    j = yy - i
+                    if 0 <= j < gh:
+                        g0 += taps[i] * tmp[j, xx, 0]
+                        g1 += taps[i] * tmp[j, xx, 1]
+                u = ixx * g0 + ixy * g1
+                v = ixy * g0 + iyy * g1
+                cxx += u * u
+                cxy += u * v
+                cyy += v * v
+        out[k, 0] = px
+        out[k, 1] = py
+        cov[k, 0] = cxx
+        cov[k, 1] = cxy
+        cov[k, 2] = cyy
+        wres[k] = math.sqrt(rr / (ww * t2 * t2)) if ww > 0.0 else np.nan

@@ -396,10 +396,19 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
-       in the band the fit sees, through each corner's own fit). A corner whose sigma passes a
-       quarter of a pixel is dropped (it could lie a pixel off: a board too dim for its
-       noise); where fewer than four are left the board is not found, and the message says
-       why.
+       in the band the fit sees, through each corner's own fit).
+    9. Symmetry: where the noise leaves a corner's saddle point more than 0.05 px uncertain
+       (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
+       the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
+       checkerboard is about each inner corner (:func:`_symmetric`, after Schoeps et al.,
+       CVPR 2020): it reads the squares' edges along their length where the saddle fit reads
+       a few pixels, so the noise moves it less, and the corner takes its sigma. Where the two
+       estimates disagree beyond their sigmas the saddle point stays. Below 0.05 px the saddle
+       point stays too: noise is not what limits such a corner, and on clean real photos the
+       two estimators differ systematically (benchmarks/notes.md, fourteenth session).
+       Then a corner whose sigma passes a quarter of a pixel is dropped (it could lie a pixel
+       off: a board too dim for its noise); where fewer than four are left the board is not
+       found, and the message says why.
 
     Corners not seen (fingers over them, outside the image, failing the check) are NaN rows.
     Grey, RGB(A) and 16-bit images are accepted. An image without a board gives
@@ -568,10 +577,11 @@ def _fit_noise_factors(r: int, smoothing: float) -> tuple[float, tuple[float, fl
     return float(resid), (float(PKP[3, 3]), float(PKP[4, 4]))
 
 def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r: int,
-                 smoothing: float, image_noise: float) -> np.ndarray:
+                 smoothing: float, image_noise: float) -> tuple[np.ndarray, float]:
     """Each corner's one-sigma (per axis, px) from the image's noise, NaN where it has no
-    saddle: what the fit's residuals miss (they take the smoothed noise as independent, and on
-    a dim board under JPEG read tens of times low).
+    saddle, and the white pixel noise ``w`` measured on the board. The sigma is what the
+    fit's residuals miss (they take the smoothed noise as independent, and on a dim board
+    under JPEG read tens of times low).
 
     The noise is measured where the board is flat, in the band the fit sees: the same
     quadratic on the same window of the image smoothed the same way, at the middles of the
@@ -590,7 +600,7 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     sigma = np.full(len(corners), np.nan)
     seen = np.isfinite(corners).all(axis=1)
     if seen.sum() == 0:
-        return sigma
+        return sigma, image_noise
     mid, clear = _square_middles(corners, cols, rows)
     h, w = grey.shape[:2]
     margin = r + 3
@@ -622,15 +632,19 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat fit: no sigma
         h11, h12, h22 = 2 * cc / det, -b / det, 2 * a / det
         sigma[seen] = np.sqrt(0.5 * (var_d * (h11 * h11 + h12 * h12) + var_e * (h12 * h12 + h22 * h22)))
-    return sigma
+    return sigma, float(np.sqrt(white))
 
 
 def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float) -> Detection:
-    """Step 8 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and the
-    noise's (:func:`_noise_sigma`); corners over ``_MAX_CORNER_SIGMA`` are dropped."""
+    """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
+    the noise's (:func:`_noise_sigma`); corners moved to their point of symmetry
+    (:func:`_symmetric`) take that estimate's; corners over ``_MAX_CORNER_SIGMA`` are
+    dropped."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
+    noise, white = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
     sigma = np.fmax(det.sigma_px, noise)
+    corners, sigma = _symmetric(grey, det.corners, sigma, noise, cols, white)
+    det = Detection(True, corners, sigma, det.window_px, det.message)
     noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
     if not noisy.any():
         return Detection(True, det.corners, sigma, det.window_px, det.message)
@@ -644,6 +658,138 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     if found < 4:
         return Detection.not_found(len(corners), f"not found: {why}", det.window_px)
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
+
+
+#: Step 9: the samples reach this fraction of a square from the corner each way, in the
+#: board's local coordinates (0.35-0.45 fitted fisheye views worse: the 3x3 neighbourhood's
+#: quadratic stops following the rim; benchmarks/notes.md, fourteenth session).
+_SYM_REACH = 0.3
+#: ... spaced about this many pixels apart (at most ``_SYM_MAX_HALF`` to a side of the grid).
+_SYM_STEP_PX = 0.7
+_SYM_MAX_HALF = 40
+#: ... on the corners whose saddle point the noise leaves more uncertain than this (px): on
+#: clean photos the two estimators differ systematically (Bouguet's set: 0.13 px median, and
+#: the calibration's principal point 0.9 px apart), and there the saddle point stays.
+_SYM_FROM_SIGMA = 0.05
+#: ... on the image smoothed by this Gaussian sigma (px): the gradients' noise otherwise
+#: inflates the normal matrix and the sigma reads low on dim boards.
+_SYM_SMOOTHING = 1.0
+
+
+def _local_maps(corners: np.ndarray, cols: int, spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each corner's map of its board neighbourhood: board offsets (du, dv) in squares to
+    pixels, fitted on the labelled corners of its 3x3 neighbourhood (a quadratic in du, dv
+    where eight or nine are there: perspective and the lens's bending; a homography where
+    five to seven are). Returns the offsets ``a`` = map(u) - map(0) and ``b`` = map(-u) -
+    map(0), (N, M, 2), for the half grid ``u`` of :func:`_symmetric`, and which corners have
+    a map."""
+    n = len(corners)
+    rows = n // cols
+    grid = np.full((rows + 2, cols + 2, 2), np.nan)
+    grid[1:-1, 1:-1] = corners.reshape(rows, cols, 2)
+    src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.float64)  # (9, 2)
+    dst = np.stack([grid[1 + dr:rows + 1 + dr, 1 + dc:cols + 1 + dc].reshape(n, 2) for dc, dr in src.astype(int)],
+                   axis=1)  # (N, 9, 2)
+    have = np.isfinite(dst).all(axis=2) & np.isfinite(corners).all(axis=1)[:, None]
+    count = have.sum(axis=1)
+    scale = max(float(spacing), 1.0)
+    rel = np.where(have[..., None], (dst - np.nan_to_num(corners)[:, None]) / scale, 0.0)
+    m = max(2, min(_SYM_MAX_HALF, round(_SYM_REACH * spacing / _SYM_STEP_PX)))
+    t = np.arange(-m, m + 1) * (_SYM_REACH / m)
+    uu, vv = np.meshgrid(t, t)
+    u = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
+    ends = np.concatenate([np.zeros((1, 2)), u, -u])  # map(0), map(u), map(-u)
+
+    def quad_basis(x: np.ndarray) -> np.ndarray:
+        return np.stack([np.ones(len(x)), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], axis=1)
+
+    mapped = np.full((n, len(ends), 2), np.nan)
+    quad = count >= 8
+    if quad.any():
+        Q = quad_basis(src)
+        Qw = Q[None] * have[quad][:, :, None]
+        coef = np.linalg.solve(Qw.transpose(0, 2, 1) @ Q[None], Qw.transpose(0, 2, 1) @ rel[quad])  # (K, 6, 2)
+        mapped[quad] = quad_basis(ends)[None] @ coef
+    homog = (count >= 5) & ~quad
+    if homog.any():
+        h = have[homog]
+        r = rel[homog]
+        x, y = src[:, 0][None], src[:, 1][None]
+        zero, one = np.zeros_like(r[..., 0]), np.ones_like(r[..., 0])
+        xb, yb = np.broadcast_to(x, r[..., 0].shape), np.broadcast_to(y, r[..., 0].shape)
+        ru, rv = r[..., 0], r[..., 1]
+        eq_u = np.stack([xb, yb, one, zero, zero, zero, -ru * xb, -ru * yb, -ru], axis=-1)
+        eq_v = np.stack([zero, zero, zero, xb, yb, one, -rv * xb, -rv * yb, -rv], axis=-1)
+        A = np.concatenate([eq_u, eq_v], axis=1) * np.concatenate([h, h], axis=1)[..., None]
+        _, sv, vt = np.linalg.svd(A)
+        H = vt[:, -1].reshape(-1, 3, 3)
+        ok_h = sv[:, -2] > 1e-6 * sv[:, 0]
+        e = np.concatenate([ends, np.ones((len(ends), 1))], axis=1) @ H.transpose(0, 2, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            pm = e[..., :2] / e[..., 2:]
+        pm[~ok_h] = np.nan
+        mapped[homog] = pm
+    mapped *= scale
+    k = len(u)
+    a = mapped[:, 1:k + 1] - mapped[:, :1]
+    b = mapped[:, k + 1:] - mapped[:, :1]
+    usable = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2))
+    return a, b, usable
+
+
+def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
+               white: float) -> tuple[np.ndarray, np.ndarray]:
+    """Step 9 of :func:`detect_corners`: each corner moved to the point through which the image
+    around it is point-symmetric on the board (a checkerboard is, about every inner corner),
+    where that estimate agrees with the saddle point; returns (corners, sigma).
+
+    The idea is the "refinement by symmetry" of Schoeps, Larsson, Pollefeys and Sattler, "Why
+    Having 10,000 Parameters in Your Camera Model is Better Than Twelve" (CVPR 2020,
+    arXiv:1912.02908): pairs of samples mirrored through the corner in the board's
+    coordinates see the same shade, and the corner is where their differences' sum of
+    squares is least. They fit a homography per feature; here the board's local map is fixed
+    from the labelled neighbours (:func:`_local_maps`, out to ``_SYM_REACH`` of a square,
+    a quadratic that follows the lens's bending) and only the corner moves
+    (:func:`camkit._kernels.detect.symmetry_refine`, on the image smoothed by
+    ``_SYM_SMOOTHING`` so that the noise does not enter the gradients). It reads the squares'
+    edges along a third of their length where the saddle fit reads a window of 2-5 px, so
+    the image's noise moves it less. It runs on the corners whose ``noise_sigma`` (the
+    saddle fit's, step 8) passes ``_SYM_FROM_SIGMA``. Its sigma is the linearised
+    estimator's through the smoothing and the bilinear weights, times the larger of the
+    board's white noise ``white`` and what the final residuals imply (model misfit, an
+    occluder in the window). The saddle point stays where the symmetric point lies more
+    than three of their combined sigmas and a tenth of a pixel from it, or more than half a
+    pixel, or cannot be placed (a sample outside the image, fewer than five neighbours)."""
+    seen = np.isfinite(corners).all(axis=1)
+    if seen.sum() < 5:
+        return corners, sigma
+    spacing = _corner_spacing(corners, Checkerboard(cols, len(corners) // cols, 1.0))
+    if not np.isfinite(spacing):
+        return corners, sigma
+    a, b, usable = _local_maps(corners, cols, spacing)
+    with np.errstate(invalid="ignore"):
+        noisy = noise_sigma > _SYM_FROM_SIGMA
+    use = np.flatnonzero(seen & usable & noisy)
+    if len(use) == 0:
+        return corners, sigma
+    img = np.empty(grey.shape)
+    detect_kernels.gaussian_blur(np.ascontiguousarray(grey, dtype=np.float64), _SYM_SMOOTHING, img)
+    taps = detect_kernels.gaussian_taps(_SYM_SMOOTHING)
+    pos = np.empty((len(use), 2))
+    cov = np.empty((len(use), 3))
+    wres = np.empty(len(use))
+    m = np.full(len(use), a.shape[1], dtype=np.int64)
+    detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use]), np.ascontiguousarray(a[use]),
+                                   np.ascontiguousarray(b[use]), m, 20, 1e-3, pos, cov, wres)
+    with np.errstate(invalid="ignore"):
+        sym_sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, white)
+        move = np.hypot(*(pos - corners[use]).T)
+        agree = (move <= np.minimum(0.1 + 3.0 * np.hypot(sigma[use], sym_sigma), 0.5)) & np.isfinite(sym_sigma)
+    out, sig = corners.copy(), sigma.copy()
+    out[use[agree]] = pos[agree]
+    sig[use[agree]] = sym_sigma[agree]
+    return out, sig
 
 
 def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
