@@ -676,13 +676,16 @@ _SYM_FROM_SIGMA = 0.05
 _SYM_SMOOTHING = 1.0
 
 
-def _local_maps(corners: np.ndarray, cols: int, spacing: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _SYM_REACH,
+                centre_known: bool = True) -> tuple[np.ndarray, ...]:
     """Each corner's map of its board neighbourhood: board offsets (du, dv) in squares to
     pixels, fitted on the labelled corners of its 3x3 neighbourhood (a quadratic in du, dv
     where eight or nine are there: perspective and the lens's bending; a homography where
     five to seven are). Returns the offsets ``a`` = map(u) - map(0) and ``b`` = map(-u) -
-    map(0), (N, M, 2), for the half grid ``u`` of :func:`_symmetric`, and which corners have
-    a map."""
+    map(0), (N, M, 2), for the half grid ``u`` of :func:`_symmetric` out to ``reach``
+    squares, which corners have a map, map(0) (N, 2) and a square's steps there along the
+    columns and the rows (N, 2) each. ``centre_known=False``: the maps of corners not found
+    too, from their neighbours alone (four at least; map(0) then predicts the corner)."""
     n = len(corners)
     rows = n // cols
     grid = np.full((rows + 2, cols + 2, 2), np.nan)
@@ -690,16 +693,22 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float) -> tuple[np.ndar
     src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.float64)  # (9, 2)
     dst = np.stack([grid[1 + dr:rows + 1 + dr, 1 + dc:cols + 1 + dc].reshape(n, 2) for dc, dr in src.astype(int)],
                    axis=1)  # (N, 9, 2)
-    have = np.isfinite(dst).all(axis=2) & np.isfinite(corners).all(axis=1)[:, None]
+    have = np.isfinite(dst).all(axis=2)
+    if centre_known:
+        have &= np.isfinite(corners).all(axis=1)[:, None]
     count = have.sum(axis=1)
     scale = max(float(spacing), 1.0)
-    rel = np.where(have[..., None], (dst - np.nan_to_num(corners)[:, None]) / scale, 0.0)
-    m = max(2, min(_SYM_MAX_HALF, round(_SYM_REACH * spacing / _SYM_STEP_PX)))
-    t = np.arange(-m, m + 1) * (_SYM_REACH / m)
+    with np.errstate(invalid="ignore"):  # a corner with no neighbour: no reference, no map
+        ref = np.where(np.isfinite(corners), corners,
+                       np.nansum(np.where(have[..., None], dst, 0.0), axis=1) / np.maximum(count, 1)[:, None])
+    rel = np.where(have[..., None], (dst - np.nan_to_num(ref)[:, None]) / scale, 0.0)
+    m = max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX)))
+    t = np.arange(-m, m + 1) * (reach / m)
     uu, vv = np.meshgrid(t, t)
     u = np.stack([uu.ravel(), vv.ravel()], axis=1)
     u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
-    ends = np.concatenate([np.zeros((1, 2)), u, -u])  # map(0), map(u), map(-u)
+    steps = np.array([[0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
+    ends = np.concatenate([np.zeros((1, 2)), u, -u, steps])  # map(0), map(u), map(-u), half steps
 
     def quad_basis(x: np.ndarray) -> np.ndarray:
         return np.stack([np.ones(len(x)), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], axis=1)
@@ -711,7 +720,7 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float) -> tuple[np.ndar
         Qw = Q[None] * have[quad][:, :, None]
         coef = np.linalg.solve(Qw.transpose(0, 2, 1) @ Q[None], Qw.transpose(0, 2, 1) @ rel[quad])  # (K, 6, 2)
         mapped[quad] = quad_basis(ends)[None] @ coef
-    homog = (count >= 5) & ~quad
+    homog = (count >= (5 if centre_known else 4)) & ~quad  # four points and the centre, or four around it
     if homog.any():
         h = have[homog]
         r = rel[homog]
@@ -733,9 +742,10 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float) -> tuple[np.ndar
     mapped *= scale
     k = len(u)
     a = mapped[:, 1:k + 1] - mapped[:, :1]
-    b = mapped[:, k + 1:] - mapped[:, :1]
+    b = mapped[:, k + 1:2 * k + 1] - mapped[:, :1]
     usable = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2))
-    return a, b, usable
+    h = mapped[:, 2 * k + 1:]
+    return a, b, usable, ref + mapped[:, 0], h[:, 0] - h[:, 1], h[:, 2] - h[:, 3]
 
 
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
@@ -767,7 +777,7 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     spacing = _corner_spacing(corners, Checkerboard(cols, len(corners) // cols, 1.0))
     if not np.isfinite(spacing):
         return corners, sigma
-    a, b, usable = _local_maps(corners, cols, spacing)
+    a, b, usable = _local_maps(corners, cols, spacing)[:3]
     with np.errstate(invalid="ignore"):
         noisy = noise_sigma > _SYM_FROM_SIGMA
     use = np.flatnonzero(seen & usable & noisy)
