@@ -114,8 +114,7 @@ from camkit.target.base import Detection, Sheet, Target, register_target
 from camkit.target.checkerboard import (
     _SIGMA_RATIO,
     _SYM_SMOOTHING,
-    Checkerboard,
-    _corner_spacing,
+    _grid_spacing,
     _lattices,
     _local_maps,
     _sample,
@@ -398,7 +397,7 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
     it asymmetric), its sigma is at most :data:`_MAX_RECOVERED_SIGMA`, it is an X-junction
     with its label's colours on a circle inside the white margin, and it lies on no other
     corner."""
-    nx, ny = board.squares_x - 1, board.squares_y - 1
+    nx = board.squares_x - 1
     H, W = full.shape
     margin = 0.5 * (board.square - board.marker) / board.square
     box = margin + board.marker / board.square / (board.aruco.marker_size + 2)  # the border's inner edge
@@ -407,7 +406,7 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         found = np.isfinite(out).all(axis=1)
         if found.sum() < 5 or found.all():
             return
-        spacing = _corner_spacing(out, Checkerboard(nx, ny, 1.0))
+        spacing = _grid_spacing(out, nx)
         if not np.isfinite(spacing):
             return
         a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=False)

@@ -446,9 +446,13 @@ _COARSER_FROM_PX = 40.0
 
 def _corner_spacing(corners: np.ndarray, board: Checkerboard) -> float:
     """Median distance between neighbouring labelled corners (NaN where none are)."""
+    return _grid_spacing(corners, board.inner_cols)
+
+
+def _grid_spacing(corners: np.ndarray, cols: int) -> float:
+    """:func:`_corner_spacing` of a lattice of ``cols`` columns, labelled row by row."""
     idx = np.flatnonzero(np.isfinite(corners).all(axis=1))
-    return _lattice_spacing(np.stack([idx % board.inner_cols, idx // board.inner_cols], axis=-1), corners[idx],
-                            default=float("nan"))
+    return _lattice_spacing(np.stack([idx % cols, idx // cols], axis=-1), corners[idx], default=float("nan"))
 
 
 def _half(img: np.ndarray) -> np.ndarray:
@@ -774,7 +778,7 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     seen = np.isfinite(corners).all(axis=1)
     if seen.sum() < 5:
         return corners, sigma
-    spacing = _corner_spacing(corners, Checkerboard(cols, len(corners) // cols, 1.0))
+    spacing = _grid_spacing(corners, cols)
     if not np.isfinite(spacing):
         return corners, sigma
     a, b, usable = _local_maps(corners, cols, spacing)[:3]

@@ -130,6 +130,24 @@ def test_corners_past_the_markers_read_are_found_with_their_labels():
     assert err.max() < 0.05, err.max()
 
 
+def test_a_board_one_corner_wide_is_found():
+    """A 2x8 board has a single column of seven corners: every step handles it, step 6 (the
+    point of symmetry of corners still missing, whose neighbourhood maps and spacing take the
+    lattice's width) included, run here for the last corner cut off by the image's edge;
+    every corner returned within 0.1 px."""
+    b = Charuco(2, 8, 0.04, 0.03, "DICT_4X4_50")
+    pts = b.object_points()
+    R = Pose.from_rvec([0.2, -0.1, 0.3], [0.0, 0.0, 0.0]).R
+    img, truth = render_target(CAM, Pose(R, np.array([0.0, 0.0, 0.5]) - R @ pts.mean(axis=0)), b)
+    y = truth.corners_px[:, 1]
+    assert np.all(np.diff(y) > 0)
+    cut = int(0.5 * (y[-1] + y[-2]))  # the last corner's row and below cut off
+    det = b.detect(img[:cut])
+    assert det.found and det.n_found == 6 and 6 not in det.ids, det.message
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert err.max() < 0.1, err
+
+
 def test_a_grown_corner_needs_its_black_squares_where_the_lattice_puts_them():
     """The growth's colour test, on a render with the true corners and steps: at a corner under
     its own label both black squares are dark; under the next corner's label along its row
