@@ -776,15 +776,15 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     than three of their combined sigmas and a tenth of a pixel from it, or more than half a
     pixel, or cannot be placed (a sample outside the image, fewer than five neighbours)."""
     seen = np.isfinite(corners).all(axis=1)
-    if seen.sum() < 5:
+    with np.errstate(invalid="ignore"):
+        noisy = seen & (noise_sigma > _SYM_FROM_SIGMA)
+    if seen.sum() < 5 or not noisy.any():
         return corners, sigma
     spacing = _grid_spacing(corners, cols)
     if not np.isfinite(spacing):
         return corners, sigma
     a, b, usable = _local_maps(corners, cols, spacing)[:3]
-    with np.errstate(invalid="ignore"):
-        noisy = noise_sigma > _SYM_FROM_SIGMA
-    use = np.flatnonzero(seen & usable & noisy)
+    use = np.flatnonzero(usable & noisy)
     if len(use) == 0:
         return corners, sigma
     img = np.empty(grey.shape)
