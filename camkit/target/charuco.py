@@ -409,36 +409,39 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         spacing = _grid_spacing(out, nx)
         if not np.isfinite(spacing):
             return
-        a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=False)
+        miss = np.flatnonzero(~found)
+        a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=False, only=miss)
         size = np.fmin(np.hypot(*du.T), np.hypot(*dv.T))
         with np.errstate(invalid="ignore"):
             extent = np.maximum(np.abs(a).max(axis=(1, 2)), np.abs(b).max(axis=(1, 2))) + 0.15 * size + 4
-            cand = np.flatnonzero(~found & usable & np.isfinite(size) & (size >= 6)
-                                  & (centre[:, 0] >= extent) & (centre[:, 0] <= W - 1 - extent)
-                                  & (centre[:, 1] >= extent) & (centre[:, 1] <= H - 1 - extent))
-        if not len(cand):
+            sel = np.flatnonzero(usable & np.isfinite(size) & (size >= 6)
+                                 & (centre[:, 0] >= extent) & (centre[:, 0] <= W - 1 - extent)
+                                 & (centre[:, 1] >= extent) & (centre[:, 1] <= H - 1 - extent))
+        if not len(sel):
             return
-        half = int(np.ceil(extent[cand].max()))
-        mosaic, shift = _smoothed_patches(full, centre[cand], half, _SYM_SMOOTHING)
+        cand = miss[sel]
+        a, b, centre, du, dv, size, extent = a[sel], b[sel], centre[sel], du[sel], dv[sel], size[sel], extent[sel]
+        half = int(np.ceil(extent.max()))
+        mosaic, shift = _smoothed_patches(full, centre, half, _SYM_SMOOTHING)
         pos = np.empty((len(cand), 2))
         cov = np.empty((len(cand), 3))
         wres = np.empty(len(cand))
         detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
-                                       np.ascontiguousarray(centre[cand] + shift), np.ascontiguousarray(a[cand]),
-                                       np.ascontiguousarray(b[cand]), np.full(len(cand), a.shape[1], dtype=np.int64),
+                                       np.ascontiguousarray(centre + shift), np.ascontiguousarray(a),
+                                       np.ascontiguousarray(b), np.full(len(cand), a.shape[1], dtype=np.int64),
                                        20, 1e-3, pos, cov, wres)
         pos -= shift
         with np.errstate(invalid="ignore"):
             sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, noise)
-            ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre[cand]).T) <= 0.15 * size[cand])
+            ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre).T) <= 0.15 * size)
                   & (wres <= 2.0 * noise + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
         if ok.any():
             k = np.flatnonzero(ok)
-            rho = np.maximum(0.6 * margin * size[cand[k]], 1.5)
+            rho = np.maximum(0.6 * margin * size[k], 1.5)
             x, mid = x_corner_shades(full, pos[k], rho)
             k, mid, rho = k[x], mid[x], rho[x]
-            k = k[_colours_on_circle(board, full, cand[k], pos[k], du[cand[k]], dv[cand[k]], mid, rho)]
-            k = k[apart_from_found(pos[k], out[found], 0.5 * size[cand[k]])]
+            k = k[_colours_on_circle(board, full, cand[k], pos[k], du[k], dv[k], mid, rho)]
+            k = k[apart_from_found(pos[k], out[found], 0.5 * size[k])]
         else:
             k = np.zeros(0, dtype=np.int64)
         if not len(k):

@@ -681,7 +681,7 @@ _SYM_SMOOTHING = 1.0
 
 
 def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _SYM_REACH,
-                centre_known: bool = True) -> tuple[np.ndarray, ...]:
+                centre_known: bool = True, only: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """Each corner's map of its board neighbourhood: board offsets (du, dv) in squares to
     pixels, fitted on the labelled corners of its 3x3 neighbourhood (a quadratic in du, dv
     where eight or nine are there: perspective and the lens's bending; a homography where
@@ -689,7 +689,8 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     map(0), (N, M, 2), for the half grid ``u`` of :func:`_symmetric` out to ``reach``
     squares, which corners have a map, map(0) (N, 2) and a square's steps there along the
     columns and the rows (N, 2) each. ``centre_known=False``: the maps of corners not found
-    too, from their neighbours alone (four at least; map(0) then predicts the corner)."""
+    too, from their neighbours alone (four at least; map(0) then predicts the corner).
+    ``only``: the corners (indices) whose maps are wanted; the rows returned are theirs."""
     n = len(corners)
     rows = n // cols
     grid = np.full((rows + 2, cols + 2, 2), np.nan)
@@ -697,13 +698,16 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.float64)  # (9, 2)
     dst = np.stack([grid[1 + dr:rows + 1 + dr, 1 + dc:cols + 1 + dc].reshape(n, 2) for dc, dr in src.astype(int)],
                    axis=1)  # (N, 9, 2)
+    pts = corners
+    if only is not None:
+        dst, pts = dst[only], corners[only]
     have = np.isfinite(dst).all(axis=2)
     if centre_known:
-        have &= np.isfinite(corners).all(axis=1)[:, None]
+        have &= np.isfinite(pts).all(axis=1)[:, None]
     count = have.sum(axis=1)
     scale = max(float(spacing), 1.0)
     with np.errstate(invalid="ignore"):  # a corner with no neighbour: no reference, no map
-        ref = np.where(np.isfinite(corners), corners,
+        ref = np.where(np.isfinite(pts), pts,
                        np.nansum(np.where(have[..., None], dst, 0.0), axis=1) / np.maximum(count, 1)[:, None])
     rel = np.where(have[..., None], (dst - np.nan_to_num(ref)[:, None]) / scale, 0.0)
     m = max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX)))
@@ -717,7 +721,7 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     def quad_basis(x: np.ndarray) -> np.ndarray:
         return np.stack([np.ones(len(x)), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], axis=1)
 
-    mapped = np.full((n, len(ends), 2), np.nan)
+    mapped = np.full((len(pts), len(ends), 2), np.nan)
     quad = count >= 8
     if quad.any():
         Q = quad_basis(src)
@@ -783,8 +787,9 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     spacing = _grid_spacing(corners, cols)
     if not np.isfinite(spacing):
         return corners, sigma
-    a, b, usable = _local_maps(corners, cols, spacing)[:3]
-    use = np.flatnonzero(usable & noisy)
+    idx = np.flatnonzero(noisy)
+    a, b, usable = _local_maps(corners, cols, spacing, only=idx)[:3]
+    a, b, use = a[usable], b[usable], idx[usable]
     if len(use) == 0:
         return corners, sigma
     img = np.empty(grey.shape)
@@ -794,8 +799,8 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     cov = np.empty((len(use), 3))
     wres = np.empty(len(use))
     m = np.full(len(use), a.shape[1], dtype=np.int64)
-    detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use]), np.ascontiguousarray(a[use]),
-                                   np.ascontiguousarray(b[use]), m, 20, 1e-3, pos, cov, wres)
+    detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use]), np.ascontiguousarray(a),
+                                   np.ascontiguousarray(b), m, 20, 1e-3, pos, cov, wres)
     with np.errstate(invalid="ignore"):
         sym_sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, white)
         move = np.hypot(*(pos - corners[use]).T)
