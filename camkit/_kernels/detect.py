@@ -201,6 +201,16 @@ def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, f
     return val, gx, gy
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.ndarray, k: int,
+                   i: int) -> tuple[float, float, float]:  # pragma: no cover - numba
+    """Pair ``i`` of point ``k`` of :func:`symmetry_refine` at (px, py): its residual (the
+    shade at ``a`` less the shade at ``b``) and the residual's derivatives in x and y."""
+    va, gxa, gya = _bilinear_grad(img, px + a[k, i, 0], py + a[k, i, 1])
+    vb, gxb, gyb = _bilinear_grad(img, px + b[k, i, 0], py + b[k, i, 1])
+    return va - vb, gxa - gxb, gya - gyb
+
+
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
                     iters: int, tol: float, out: np.ndarray, cov: np.ndarray,
@@ -252,11 +262,7 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
                         or not (xa == xa and xb == xb and ya == ya and yb == yb)):
                     inside = False
                     break
-                va, gxa, gya = _bilinear_grad(img, xa, ya)
-                vb, gxb, gyb = _bilinear_grad(img, xb, yb)
-                r = va - vb
-                jx = gxa - gxb
-                jy = gya - gyb
+                r, jx, jy = _mirrored_pair(img, px, py, a, b, k, i)
                 sxx += jx * jx
                 sxy += jx * jy
                 syy += jy * jy
@@ -305,11 +311,7 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
             ya = py + a[k, i, 1]
             xb = px + b[k, i, 0]
             yb = py + b[k, i, 1]
-            va, gxa, gya = _bilinear_grad(img, xa, ya)
-            vb, gxb, gyb = _bilinear_grad(img, xb, yb)
-            r = va - vb
-            jx = gxa - gxb
-            jy = gya - gyb
+            r, jx, jy = _mirrored_pair(img, px, py, a, b, k, i)
             sxx += jx * jx
             sxy += jx * jy
             syy += jy * jy
