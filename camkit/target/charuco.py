@@ -45,7 +45,9 @@ Detection reads the markers first, then places the chessboard corners by their s
    smoothing 1.5 px, both less where they would reach the corner's markers: on a sheared
    board the markers in the acute sectors come near it), with its sigma; a corner that
    moves more than a tenth of a square (1.5 px at least), that is not an X-junction on a
-   circle inside the white margin (four alternating, point-symmetric sectors), whose
+   circle inside the white margin (four alternating, point-symmetric sectors; where the
+   markers in the acute sectors of a sheared board come nearer than the margin's width, a
+   circle clear of them is tried too), whose
    colours on that circle disagree with its label (dark towards its black squares, light
    towards its white ones: where blur joins two thin margins, their crossing beside a
    marker is a saddle too), or whose fit's sigma is over twice the typical one for its
@@ -70,9 +72,10 @@ Detection reads the markers first, then places the chessboard corners by their s
    the neighbours' local map and placed at their point of symmetry (the checkerboard's step
    9), read out to 0.7 of the box inside the markers' black borders, where the board is
    point-symmetric about the corner; kept within 0.15 of a square of the prediction, with
-   residuals of a symmetric junction (at most twice the noise and 0.02 of the board's
-   range), a sigma of at most 0.1 px (the estimator's own), an X-junction with its label's
-   colours, on no other corner. The saddle fit's small window leaves sheared or noisy
+   residuals of a symmetric junction (at most twice those of the board's found corners
+   placed the same way, or of its noise where higher, and 0.02 of the board's range), a
+   sigma of at most 0.1 px (the estimator's own), an X-junction with its label's colours,
+   on no other corner. The saddle fit's small window leaves sheared or noisy
    junctions beside markers a poor fit (corpus view 98: sigmas 0.74-0.79 px); the symmetric
    point reads the junction's edges and the markers' borders.
 
@@ -331,18 +334,16 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     win_of = np.zeros(N, dtype=np.int64)  # each found corner's window, smoothing and residuals
     sm_of = np.zeros(N)
     res_of = np.full(N, np.nan)
-    win, smooth = _windows(size[cand], _clearance(board, cand, u, v), factor)
+    clear = _clearance(board, cand, u, v)
+    win, smooth = _windows(size[cand], clear, factor)
     for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
         k = (win == r) & (smooth == sm)
         q, sg, res = refine_patches(full, pred[k], int(r), sm, residuals=True)
         moved = np.hypot(*(q - pred[k]).T)
         ok = (np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
               & fit_inside(q, int(r), full.shape))
-        # On a circle inside the white margin that keeps the markers away (0.6 of it, 1.5 px
-        # at least).
-        margin = 0.5 * (board.square - board.marker) / board.square * size[cand[k]][ok]
-        rho = np.maximum(0.6 * margin, 1.5)
-        x, mid = x_corner_shades(full, q[ok], rho)
+        # On a circle inside the white margin that keeps the markers away (_x_test).
+        x, mid, rho = _x_test(board, full, q[ok], size[cand[k]][ok], clear[k][ok])
         kk = np.flatnonzero(k)[ok][x]
         x[x] = _colours_on_circle(board, full, cand[kk], q[ok][x], u[kk], v[kk], mid[x], rho[x])
         ok[ok] = x
@@ -390,18 +391,20 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
     white squares (the two markers beside it sit alike in their squares), so the samples
     reach :data:`_SYM_BOX` of that box: where blur or shear leaves the saddle fit's small
     window a poor fit, the symmetric point still reads the junction's four edges and the
-    markers' borders. A missing corner with five or more of its eight neighbours found is
+    markers' borders. A missing corner with four or more of its eight neighbours found is
     predicted by their local map and kept where the symmetric point lies within 0.15 of a
-    square of that prediction, the residuals imply no more than twice the image's noise
-    (plus :data:`_SYM_MISFIT`: a marker's bits in reach, an occluder, another junction make
-    it asymmetric), its sigma is at most :data:`_MAX_RECOVERED_SIGMA`, it is an X-junction
-    with its label's colours on a circle inside the white margin, and it lies on no other
-    corner."""
+    square of that prediction, its residuals are at most twice the board's own (the median
+    over its found corners placed the same way: blur, JPEG and the lens's bending between the
+    neighbours leave even a found corner's samples a few hundredths of the board's range from
+    symmetric; the image's noise where higher) plus :data:`_SYM_MISFIT` (a marker's bits in
+    reach, an occluder, another junction make it asymmetric), its sigma is at most
+    :data:`_MAX_RECOVERED_SIGMA`, it is an X-junction with its label's colours on a circle
+    clear of the markers, and it lies on no other corner."""
     nx = board.squares_x - 1
-    H, W = full.shape
     margin = 0.5 * (board.square - board.marker) / board.square
     box = margin + board.marker / board.square / (board.aruco.marker_size + 2)  # the border's inner edge
     reach = _SYM_BOX * box
+    level = None
     for _ in range(_RECOVER_ROUNDS):
         found = np.isfinite(out).all(axis=1)
         if found.sum() < 5 or found.all():
@@ -409,36 +412,26 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         spacing = _grid_spacing(out, nx)
         if not np.isfinite(spacing):
             return
-        miss = np.flatnonzero(~found)
-        a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=False, only=miss)
-        size = np.fmin(np.hypot(*du.T), np.hypot(*dv.T))
-        with np.errstate(invalid="ignore"):
-            extent = np.maximum(np.abs(a).max(axis=(1, 2)), np.abs(b).max(axis=(1, 2))) + 0.15 * size + 4
-            sel = np.flatnonzero(usable & np.isfinite(size) & (size >= 6)
-                                 & (centre[:, 0] >= extent) & (centre[:, 0] <= W - 1 - extent)
-                                 & (centre[:, 1] >= extent) & (centre[:, 1] <= H - 1 - extent))
-        if not len(sel):
+        got = _symmetric_points(full, out, nx, spacing, reach, np.flatnonzero(~found), centre_known=False)
+        if got is None:
             return
-        cand = miss[sel]
-        a, b, centre, du, dv, size, extent = a[sel], b[sel], centre[sel], du[sel], dv[sel], size[sel], extent[sel]
-        half = int(np.ceil(extent.max()))
-        mosaic, shift = _smoothed_patches(full, centre, half, _SYM_SMOOTHING)
-        pos = np.empty((len(cand), 2))
-        cov = np.empty((len(cand), 3))
-        wres = np.empty(len(cand))
-        detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
-                                       np.ascontiguousarray(centre + shift), np.ascontiguousarray(a),
-                                       np.ascontiguousarray(b), np.full(len(cand), a.shape[1], dtype=np.int64),
-                                       20, 1e-3, pos, cov, wres)
-        pos -= shift
+        cand, pos, cov, wres, centre, du, dv, size = got
+        if level is None:
+            # The board's own asymmetry: its found corners (an even sample of them), placed the
+            # same way.
+            idx = np.flatnonzero(found)
+            idx = idx[np.unique(np.linspace(0, len(idx) - 1, min(len(idx), _SYM_REFERENCE)).astype(np.int64))]
+            ref = _symmetric_points(full, out, nx, spacing, reach, idx, centre_known=True)
+            level = noise
+            if ref is not None and np.isfinite(ref[3]).any():
+                level = max(noise, float(np.nanmedian(ref[3])))
         with np.errstate(invalid="ignore"):
             sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, noise)
             ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre).T) <= 0.15 * size)
-                  & (wres <= 2.0 * noise + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
+                  & (wres <= 2.0 * level + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
         if ok.any():
             k = np.flatnonzero(ok)
-            rho = np.maximum(0.6 * margin * size[k], 1.5)
-            x, mid = x_corner_shades(full, pos[k], rho)
+            x, mid, rho = _x_test(board, full, pos[k], size[k], _clearance(board, cand[k], du[k], dv[k]))
             k, mid, rho = k[x], mid[x], rho[x]
             k = k[_colours_on_circle(board, full, cand[k], pos[k], du[k], dv[k], mid, rho)]
             k = k[apart_from_found(pos[k], out[found], 0.5 * size[k])]
@@ -450,6 +443,37 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         sig[cand[k]] = sigma[k]
 
 
+def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float, reach: float, idx: np.ndarray,
+                      centre_known: bool) -> tuple[np.ndarray, ...] | None:
+    """The corners ``idx`` of the lattice ``out`` (a row of ``nx``), each at its point of
+    symmetry out to ``reach`` squares on its neighbours' local map (with the corner itself
+    where ``centre_known``), started from the map's centre: ``(which of idx, place, covariance
+    (xx, xy, yy) per unit noise, residuals' noise, the map's centre, a square's steps along
+    the board's x and y, the smaller step's length)``, for the corners with a map whose
+    samples lie inside the image and squares of 6 px or more; None where none has."""
+    H, W = full.shape
+    a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=centre_known, only=idx)
+    size = np.fmin(np.hypot(*du.T), np.hypot(*dv.T))
+    with np.errstate(invalid="ignore"):
+        extent = np.maximum(np.abs(a).max(axis=(1, 2)), np.abs(b).max(axis=(1, 2))) + 0.15 * size + 4
+        sel = np.flatnonzero(usable & np.isfinite(size) & (size >= 6)
+                             & (centre[:, 0] >= extent) & (centre[:, 0] <= W - 1 - extent)
+                             & (centre[:, 1] >= extent) & (centre[:, 1] <= H - 1 - extent))
+    if not len(sel):
+        return None
+    a, b, centre, du, dv, size, extent = a[sel], b[sel], centre[sel], du[sel], dv[sel], size[sel], extent[sel]
+    half = int(np.ceil(extent.max()))
+    mosaic, shift = _smoothed_patches(full, centre, half, _SYM_SMOOTHING)
+    pos = np.empty((len(sel), 2))
+    cov = np.empty((len(sel), 3))
+    wres = np.empty(len(sel))
+    detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
+                                   np.ascontiguousarray(centre + shift), np.ascontiguousarray(a),
+                                   np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
+                                   20, 1e-3, pos, cov, wres)
+    return idx[sel], pos - shift, cov, wres, centre, du, dv, size
+
+
 #: Step 6 reaches this fraction of the box around a corner inside which a ChArUco board is
 #: point-symmetric (to the markers' black borders' inner edges): blur carries the bits in.
 _SYM_BOX = 0.7
@@ -459,8 +483,10 @@ _SYM_MISFIT = 0.02
 #: ... and whose sigma is at most this (px): a corner placed so is labelled by its
 #: neighbours alone, and must lie well within a pixel of its junction.
 _MAX_RECOVERED_SIGMA = 0.1
-#: ... in at most this many rounds.
+#: ... in at most this many rounds. The board's own residuals are measured on this many of its
+#: found corners (evenly spread).
 _RECOVER_ROUNDS = 3
+_SYM_REFERENCE = 64
 
 
 #: Where fewer markers than this are confirmed one by one, the board is read as a whole (with
@@ -642,6 +668,28 @@ def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -
     return np.nan_to_num(clear, nan=np.inf)
 
 
+def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray,
+            clear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`x_corner_shades` about corners placed at ``q`` (K, 2), of squares ``size`` px
+    across, lying ``clear`` px from their markers (:func:`_clearance`), (K,) each: (is an
+    X-junction, its shades' middle, the circle's radius). The circle is 0.6 of the white
+    margin (1.5 px at least); where that fails and the markers come nearer the corner than the
+    margin's width, it is tried again at 0.6 of their distance. On a sheared board the
+    markers in the acute sectors come that near (corpus view 257, squares of 58 px, margins
+    of 7 px: their borders 4 px away), and a circle that crosses them meets four dark sectors,
+    not two; on a blurred board of small squares a circle of 1.5-2 px does not yet reach the
+    squares' shades (view 390), so the margin's circle is tried first."""
+    margin = 0.5 * (board.square - board.marker) / board.square * size
+    rho = np.maximum(0.6 * margin, 1.5)
+    x, mid = x_corner_shades(grey, q, rho)
+    near = np.maximum(0.6 * clear, 1.5)
+    again = np.flatnonzero(~x & (near < rho))
+    if len(again):
+        x2, mid2 = x_corner_shades(grey, q[again], near[again])
+        x[again], mid[again], rho[again] = x2, mid2, near[again]
+    return x, mid, rho
+
+
 def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
     """The saddle fit's window and smoothing for corners of squares ``size`` px across lying
     ``clear`` px from their markers (:func:`_clearance`), (K,) each: an eleventh of the size (2
@@ -785,9 +833,10 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO, np.full(len(k), sm),
                                                  _chirality(board, cand[k]), res) & (
             moved <= np.maximum(1.5 * factor, 0.1 * size[k])) & fit_inside(q, int(r), full.shape)
-        margin = 0.5 * (board.square - board.marker) / board.square * size[k][ok]
-        rho = np.maximum(0.6 * margin, 1.5)
-        x, mid = x_corner_shades(full, q[ok], rho)
+        # (Not the circle clear of the markers: a grown corner's prediction is only its
+        # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
+        # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
+        x, mid, rho = _x_test(board, full, q[ok], size[k][ok], np.full(int(ok.sum()), np.inf))
         c, qx, ux, vx = cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x]
         um, vm = _measured_steps(board, out, c, qx, ux, vx)
         x[x] = (_dark_squares(board, full, c, qx, um, vm, mid[x])
