@@ -477,8 +477,9 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
 #: Step 6 reaches this fraction of the box around a corner inside which a ChArUco board is
 #: point-symmetric (to the markers' black borders' inner edges): blur carries the bits in.
 _SYM_BOX = 0.7
-#: ... keeps a symmetric point whose residuals imply at most twice the noise plus this (the
-#: stretched grey's units: a board spans about 1) ...
+#: ... keeps a symmetric point whose residuals are at most twice the board's own (its found
+#: corners', or its noise where higher) plus this (the stretched grey's units: a board spans
+#: about 1) ...
 _SYM_MISFIT = 0.02
 #: ... and whose sigma is at most this (px): a corner placed so is labelled by its
 #: neighbours alone, and must lie well within a pixel of its junction.
@@ -669,7 +670,7 @@ def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -
 
 
 def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray,
-            clear: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            clear: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`x_corner_shades` about corners placed at ``q`` (K, 2), of squares ``size`` px
     across, lying ``clear`` px from their markers (:func:`_clearance`), (K,) each: (is an
     X-junction, its shades' middle, the circle's radius). The circle is 0.6 of the white
@@ -678,10 +679,13 @@ def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray,
     markers in the acute sectors come that near (corpus view 257, squares of 58 px, margins
     of 7 px: their borders 4 px away), and a circle that crosses them meets four dark sectors,
     not two; on a blurred board of small squares a circle of 1.5-2 px does not yet reach the
-    squares' shades (view 390), so the margin's circle is tried first."""
+    squares' shades (view 390), so the margin's circle is tried first. ``clear`` None: the
+    margin's circle alone."""
     margin = 0.5 * (board.square - board.marker) / board.square * size
     rho = np.maximum(0.6 * margin, 1.5)
     x, mid = x_corner_shades(grey, q, rho)
+    if clear is None:
+        return x, mid, rho
     near = np.maximum(0.6 * clear, 1.5)
     again = np.flatnonzero(~x & (near < rho))
     if len(again):
@@ -836,7 +840,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         # (Not the circle clear of the markers: a grown corner's prediction is only its
         # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
         # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
-        x, mid, rho = _x_test(board, full, q[ok], size[k][ok], np.full(int(ok.sum()), np.inf))
+        x, mid, rho = _x_test(board, full, q[ok], size[k][ok], None)
         c, qx, ux, vx = cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x]
         um, vm = _measured_steps(board, out, c, qx, ux, vx)
         x[x] = (_dark_squares(board, full, c, qx, um, vm, mid[x])

@@ -751,9 +751,14 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     k = len(u)
     a = mapped[:, 1:k + 1] - mapped[:, :1]
     b = mapped[:, k + 1:2 * k + 1] - mapped[:, :1]
-    usable = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2))
     h = mapped[:, 2 * k + 1:]
-    return a, b, usable, ref + mapped[:, 0], h[:, 0] - h[:, 1], h[:, 2] - h[:, 3]
+    du, dv = h[:, 0] - h[:, 1], h[:, 2] - h[:, 3]
+    # A homography through four points, three of them on a line, collapses the neighbourhood
+    # to a point (steps of 1e-13 px): no map.
+    with np.errstate(invalid="ignore"):
+        spread = np.abs(du[:, 0] * dv[:, 1] - du[:, 1] * dv[:, 0]) > 1e-6 * scale * scale
+    usable = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2)) & spread
+    return a, b, usable, ref + mapped[:, 0], du, dv
 
 
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
