@@ -61,11 +61,28 @@ def x_corner_shades(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> tuple
 def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
                  src: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
-    where a quad holds no code. All quads at once: their homographies from the unit square,
-    one sampling of every cell's 3 x 3 middle points and of the white margin around each. The
-    code's cells are inside a black border ``border`` cells wide (1 for ArUco, 2 for Kalibr's
-    AprilTags). ``src`` (K, 4, 2): where each quad's corners lie in the marker's cells (the
-    marker spans ``[0, n]^2``), where not on the marker's own corners."""
+    where a quad holds no code (:func:`read_markers_rims`)."""
+    ids, turns, _ = read_markers_rims(g, quads, d, border, src)
+    return ids, turns
+
+
+#: A quad that reads as no code is read again with its corners refined where its border is
+#: at least this dark (the fraction of the border's cells below the threshold; a marker's
+#: reads 0.85 or more) and its contrast is a marker's: a quad a pixel off a slanted marker
+#: keeps most of its border (0.68-0.93 in corpus view 878), noise's quads rarely do.
+_RIM_TO_REFINE = 0.6
+
+
+def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
+                      src: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
+    id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
+    (:data:`_RIM_TO_REFINE`) against a light margin, as a marker's. All quads at once: their
+    homographies from the unit square, one sampling of every cell's 3 x 3 middle points and of
+    the white margin around each. The code's cells are inside a black border ``border`` cells
+    wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
+    lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
+    corners."""
     K = len(quads)
     n = d.marker_size + 2 * border
     unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
@@ -90,13 +107,17 @@ def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: i
     rim = cell[:, ~inner]
     black = np.median(rim, axis=1)
     t = 0.5 * (white + black)
-    good = ok & np.isfinite(white) & (white - black > 0.15) & (np.mean(rim < t[:, None], axis=1) >= 0.85)
+    dark = np.mean(rim < t[:, None], axis=1)
+    contrast = ok & np.isfinite(white) & (white - black > 0.15)
+    good = contrast & (dark >= 0.85)
+    # (A black square, its cells all dark, is not a marker a pixel off.)
+    rimmed = contrast & (dark >= _RIM_TO_REFINE) & (cell[:, inner] > t[:, None]).any(axis=1)
     ids = np.full(K, -1, dtype=np.int64)
     turns = np.zeros(K, dtype=np.int64)
     if good.any():
         bits = (cell[good][:, border:-border, border:-border] > t[good][:, None, None]).astype(np.uint8)
         ids[good], turns[good], _ = d.identify_many(bits)
-    return ids, turns
+    return ids, turns, rimmed
 
 
 def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
@@ -175,6 +196,10 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarra
 MARKER_LEVEL_SIDE = 1600
 
 
+#: The smallest cell (px) a marker is looked for with on the full image.
+MIN_CELL_PX = 1.25
+
+
 def _swollen(n: int, b: float) -> np.ndarray:
     """The fifteen ways a quad can hold a marker of ``n`` cells with squares of ``b`` cells
     joined at some of its corners (diagonally off them, as an AprilGrid's corner squares):
@@ -185,8 +210,8 @@ def _swollen(n: int, b: float) -> np.ndarray:
     return np.stack([unit + out * ((m >> np.arange(4)) & 1)[:, None] for m in masks])
 
 
-def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
-                 corner_squares: float = 0.0) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
+def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_squares: float = 0.0,
+                 noise: float | None = None) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
     """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
     corners of every quad that holds it, (4, 2) full-image pixels in the code's order
     (top-left, top-right, bottom-right, bottom-left of the marker as the dictionary draws it),
@@ -198,9 +223,14 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
     a 2x2-mean pyramid (longer side at most :data:`MARKER_LEVEL_SIDE`) down: a finer level is
     read where the coarser gave fewer than two markers or markers of under 2 px a cell across
     (bits blur together there); a finer level's reading replaces a coarser one that read no
-    more. ``corner_squares`` (an AprilGrid's spacing, over the marker's side): a quad that
-    reads as nothing is read again as a marker with such squares joined at some of its corners
-    (a blurred junction joins their dark regions), and kept with the marker's own corners.
+    more. On the full image, quads down to :data:`MIN_CELL_PX` a cell are looked for where
+    three times the image's noise is at most half the stretch's range, and read where their
+    border is a marker's (:func:`_rims`); a quad with a marker's border that reads as no code
+    is read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
+    AprilGrid's spacing, over the marker's side): a quad that reads as nothing is read again
+    as a marker with such squares joined at some of its corners (a blurred junction joins
+    their dark regions), and kept with the marker's own corners.
+    ``noise``: the image's (:func:`image_noise`), where already measured.
     """
     levels = [(full, 1)]
     while max(levels[-1][0].shape) > MARKER_LEVEL_SIDE:
@@ -210,11 +240,29 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1,
     for g, f in reversed(levels):
         if isinstance(g, RawGrey):
             g = g.dense()
-        quads = find_quads(g, 2 * n_cells, opening=border >= 2)  # two pixels a cell at least
-        codes, turns = (read_markers(g, quads, d, border) if len(quads)
-                        else (np.zeros(0, np.int64), np.zeros(0, np.int64)))
+        # Two pixels a cell at least where a finer level is left to read; on the full image,
+        # down to :data:`MIN_CELL_PX` (refined quads read there: corpus view 883, markers of
+        # 13 px, cells of 1.6) where the image's noise leaves such cells readable: their
+        # border three times its sigma darker than their margin, and that at most half the
+        # range from black to white (the stretch's 0 to 1).
+        if f == 1 and noise is None:
+            noise = image_noise(full)
+        contrast = max(0.15, 3.0 * noise) if f == 1 else 1.0
+        small_ok = contrast <= 0.5
+        quads = find_quads(g, int(np.ceil(MIN_CELL_PX * n_cells)) if small_ok else 2 * n_cells, opening=border >= 2)
+        if small_ok and len(quads):
+            # The small quads (noise gives many) are read only where their border is a
+            # marker's.
+            small = np.ptp(quads, axis=1).min(axis=1) < 2 * n_cells
+            if small.any():
+                small[small] = ~_rims(g, quads[small], n_cells, border, contrast)
+                quads = quads[~small]
+        codes, turns, rimmed = (read_markers_rims(g, quads, d, border) if len(quads)
+                                else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
         if corner_squares > 0 and (codes < 0).any():
             quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
+        if ((codes < 0) & rimmed).any():
+            quads, codes, turns = _read_refined(g, quads, codes, turns, rimmed, d, border)
         # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
         # lie up to a cell off where blur widens or narrows it).
         read = codes >= 0
@@ -249,14 +297,26 @@ def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int =
     rise), and the corners are where adjacent lines meet (kernel
     :func:`camkit._kernels.markers.refine_quads`). Run ``iters`` times; a round in which a
     corner would lie more than a cell from the quad's, or a side's edge is not found, is not
-    taken. A quad that is not finite is returned as it came."""
+    taken. A quad that is not finite is returned as it came. A :class:`RawGrey` is read on a
+    square around each quad only (two cells and 3 px beyond its farthest corner)."""
     quads = np.asarray(quads, dtype=np.float64)
     out = quads.copy()
     ok = np.isfinite(quads).all(axis=(1, 2))
     if ok.any():
         q = np.ascontiguousarray(quads[ok])
         r = np.empty_like(q)
-        markers_kernels.refine_quads(np.ascontiguousarray(grey, dtype=np.float64), q, int(n_cells), int(iters), r)
+        if isinstance(grey, RawGrey):
+            centre = q.mean(axis=1)
+            reach = np.hypot(*(q - centre[:, None]).transpose(2, 0, 1)).max(axis=1)
+            half = int(np.ceil((reach * (1.0 + 4.0 / n_cells)).max())) + 3
+            # (An unblurred copy: a Gaussian of 1e-3 px has one tap.)
+            mosaic, shift = _smoothed_patches(grey, centre, half, 1e-3)
+            markers_kernels.refine_quads(mosaic, np.ascontiguousarray(q + shift[:, None]), int(n_cells),
+                                         int(iters), r)
+            r -= shift[:, None]
+        else:
+            markers_kernels.refine_quads(np.ascontiguousarray(grey, dtype=np.float64), q, int(n_cells), int(iters),
+                                         r)
         out[ok] = r
     return out
 
@@ -269,6 +329,56 @@ def add_marker(found: dict[int, list[np.ndarray]], code: int, corners: np.ndarra
     same = found.setdefault(code, [])
     if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
         same.append(corners)
+
+
+def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float) -> np.ndarray:
+    """Whether each quad (K, 4, 2) has a marker's border (``border`` cells wide on a marker of
+    ``n`` cells): the border's cells, one sample each in their middles, mostly dark
+    (:data:`_RIM_TO_REFINE`) against the white margin half a cell outside each side's middle,
+    ``contrast`` lighter at least (medians). A quick look (a tenth of
+    :func:`read_markers_rims`'s samples)."""
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    Hs = fit_homographies(np.broadcast_to(unit, quads.shape), quads)
+    ok = np.isfinite(Hs).all(axis=(1, 2))
+    Hs[~ok] = np.eye(3)
+    cy, cx = np.mgrid[0:n, 0:n]
+    rim = (cx < border) | (cy < border) | (cx >= n - border) | (cy >= n - border)
+    pts = np.concatenate([np.stack([cx[rim] + 0.5, cy[rim] + 0.5], axis=-1),
+                          [[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]]])
+    p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        px = p[:, :, :2] / p[:, :, 2:]
+    vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
+                   "bilinear").reshape(len(quads), len(pts))
+    r = int(rim.sum())
+    white = np.median(vals[:, r:], axis=1)
+    black = np.median(vals[:, :r], axis=1)
+    t = 0.5 * (white + black)
+    with np.errstate(invalid="ignore"):
+        return ok & (white - black > contrast) & (np.mean(vals[:, :r] < t[:, None], axis=1) >= _RIM_TO_REFINE)
+
+
+def _read_refined(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, rimmed: np.ndarray,
+                  d: ArucoDictionary, border: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quads that read as no code but have a marker's border (``rimmed``) read again with
+    their corners where their sides' edges meet (:func:`refine_quads`): a region's extreme
+    pixels lie up to a cell off the marker's corners, which shifts every sample of a marker
+    seen at a slant, its cells 2 px across, by half a cell (corpus view 878's markers 16 and
+    23 through a fisheye at 65 degrees)."""
+    fail = np.flatnonzero((codes < 0) & rimmed)
+    n = d.marker_size + 2 * border
+    rq = refine_quads(g, quads[fail], n)
+    moved = np.flatnonzero(np.abs(rq - quads[fail]).max(axis=(1, 2)) > 0)
+    if not len(moved):
+        return quads, codes, turns
+    ids, tn = read_markers(g, rq[moved], d, border)
+    hit = ids >= 0
+    if not hit.any():
+        return quads, codes, turns
+    k = fail[moved[hit]]
+    quads, codes, turns = quads.copy(), codes.copy(), turns.copy()
+    quads[k], codes[k], turns[k] = rq[moved[hit]], ids[hit], tn[hit]
+    return quads, codes, turns
 
 
 def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, d: ArucoDictionary,
@@ -624,9 +734,10 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
                     quads: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
     """The board's markers ``quads`` (id -> confirmed (4, 2) corners, full-image pixels) and
     those the neighbours find: a marker not among them (its quad not found, or merged with
-    something beside it) is read where its neighbours put it (:func:`neighbour_quads`) and
-    kept where it reads as its own id the right way up. Rounds until none is added, so that a
-    row of markers is recovered from one side."""
+    something beside it) is read where its neighbours put it (:func:`neighbour_quads`), or
+    where that does not read, with those corners refined to its sides' edges
+    (:func:`refine_quads`), and kept where it reads as its own id the right way up. Rounds
+    until none is added, so that a row of markers is recovered from one side."""
     quads = dict(quads)
     H, W = grey.shape
     tried: set[int] = set()
@@ -637,11 +748,20 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
         if not inside:
             return quads
         tried.update(inside)
-        ids, turns = read_markers(grey, np.stack([pred[m] for m in inside]), d, border)
+        q = np.stack([pred[m] for m in inside])
+        ids, turns = read_markers(grey, q, d, border)
+        # Through a wide lens the neighbours' homography puts a marker at the board's edge a
+        # cell or more off: a quad that does not read is read again with its corners where its
+        # sides' edges meet (corpus view 878: markers 5 and 11, 8-13 px across at 69 degrees).
+        miss = np.flatnonzero((ids != np.asarray(inside)) | (turns != 0))
+        if len(miss):
+            rq = refine_quads(grey, q[miss], d.marker_size + 2 * border)
+            ids2, turns2 = read_markers(grey, rq, d, border)
+            q[miss], ids[miss], turns[miss] = rq, ids2, turns2
         added = False
-        for m, i, k in zip(inside, ids, turns, strict=True):
+        for m, i, k, qm in zip(inside, ids, turns, q, strict=True):
             if i == m and k == 0:
-                quads[m] = pred[m]
+                quads[m] = qm
                 added = True
         if not added:
             return quads

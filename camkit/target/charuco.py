@@ -15,15 +15,18 @@ Layout, object points and ids are OpenCV's ``cv2.aruco.CharucoBoard`` (4.6 and l
 Detection reads the markers first, then places the chessboard corners by their saddle points:
 
 1. dark regions of an adaptive threshold (each pixel against the mean of a window around
-   it, three window sizes), 4-connected; each region the size of a marker gives a quad (the
-   farthest pixel from its centre, the farthest from that, and the farthest from the line
-   through both on either side);
+   it, three window sizes), 4-connected; each region the size of a marker (two pixels a cell
+   at least, and on the full image down to 1.25 where the image's noise leaves such cells
+   readable, their border read first) gives a quad (the farthest pixel from its centre, the
+   farthest from that, and the farthest from the line through both on either side);
 2. the quad's cells are sampled through the homography of the unit square (3 x 3 samples in
    the middle of each cell), thresholded halfway between the black border and the white
    margin around the marker; a border that is not black, or bits more than the dictionary's
    correction away from every code in all four turns, reject the quad; a quad read has its
    corners moved to where the lines of its sides' edges meet
-   (:func:`~camkit.target._markers.refine_quads`);
+   (:func:`~camkit.target._markers.refine_quads`), and a quad with a marker's border that
+   reads as nothing is read again so (its extreme pixels a pixel off a slanted marker's
+   corners shift every sample half a cell at two pixels a cell);
 3. the markers' ids are checked against the board: an id the board does not have is
    another board's; an id seen twice is dropped; and each marker must be confirmed by a
    neighbour (another marker within two squares such that one homography maps both markers'
@@ -47,7 +50,9 @@ Detection reads the markers first, then places the chessboard corners by their s
    moves more than a tenth of a square (1.5 px at least), that is not an X-junction on a
    circle inside the white margin (four alternating, point-symmetric sectors; where the
    markers in the acute sectors of a sheared board come nearer than the margin's width, a
-   circle clear of them is tried too), whose
+   circle clear of them is tried too, and where both fail, a circle on the board through
+   the corner's steps: seen 70-80 degrees from square on, an image circle all but misses
+   the acute sectors), whose
    colours on that circle disagree with its label (dark towards its black squares, light
    towards its white ones: where blur joins two thin margins, their crossing beside a
    marker is a saddle too), or whose fit's sigma is over twice the typical one for its
@@ -68,14 +73,17 @@ Detection reads the markers first, then places the chessboard corners by their s
    Each corner's sigma is its fit's own (its residuals taken as noise): where the quadratic
    misfits a shallow saddle it overstates the error (0.6-0.9 px at 0.05-0.15 px off: corpus
    view 89) and is an upper bound.
-6. the corners still missing with four or more of their eight neighbours found: predicted by
-   the neighbours' local map and placed at their point of symmetry (the checkerboard's step
-   9), read out to 0.7 of the box inside the markers' black borders, where the board is
-   point-symmetric about the corner; kept within 0.15 of a square of the prediction, with
-   residuals of a symmetric junction (at most twice those of the board's found corners
-   placed the same way, or of its noise where higher, and 0.02 of the board's range), a
-   sigma of at most 0.1 px (the estimator's own), an X-junction with its label's colours,
-   on no other corner. The saddle fit's small window leaves sheared or noisy
+6. the corners still missing with four or more of their eight neighbours found, or fewer
+   and a confirmed marker in one of their squares: predicted by the neighbours' local map
+   (with fewer than four, the homography of the neighbours and the markers' corners: a
+   corner at the board's edge or beside two unread markers) and placed at their point of
+   symmetry (the checkerboard's step 9), read out to 0.7 of the box inside the markers'
+   black borders, where the board is point-symmetric about the corner; kept within 0.15 of
+   a square of the prediction, with residuals of a symmetric junction (at most twice those
+   of the board's found corners placed the same way, or of its noise where higher, and 0.02
+   of the board's range), a sigma of at most 0.1 px (the estimator's own), an X-junction
+   with its label's colours, on no other corner (more than half the way to its nearest
+   neighbour on the board from every found corner). The saddle fit's small window leaves sheared or noisy
    junctions beside markers a poor fit (corpus view 98: sigmas 0.74-0.79 px); the symmetric
    point reads the junction's edges and the markers' borders.
 
@@ -120,8 +128,10 @@ from camkit.target.checkerboard import (
     _grid_spacing,
     _lattices,
     _local_maps,
+    _map_ends,
     _sample,
     _smoothed_patches,
+    _split_map,
     _to_grey,
 )
 
@@ -249,7 +259,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image, lazy=True)
     # 1-2. Markers: quads whose cells read as a code.
-    found, factor, level = find_markers(full, board.aruco)
+    noise = image_noise(full)
+    found, factor, level = find_markers(full, board.aruco, noise=noise)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
@@ -343,9 +354,10 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         ok = (np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
               & fit_inside(q, int(r), full.shape))
         # On a circle inside the white margin that keeps the markers away (_x_test).
-        x, mid, rho = _x_test(board, full, q[ok], size[cand[k]][ok], clear[k][ok])
-        kk = np.flatnonzero(k)[ok][x]
-        x[x] = _colours_on_circle(board, full, cand[kk], q[ok][x], u[kk], v[kk], mid[x], rho[x])
+        kk = np.flatnonzero(k)[ok]
+        x, mid, rho, ob = _x_test(board, full, q[ok], size[cand[k]][ok], clear[k][ok], u[kk], v[kk])
+        kk = kk[x]
+        x[x] = _colours_on_circle(board, full, cand[kk], q[ok][x], u[kk], v[kk], mid[x], rho[x], ob[x])
         ok[ok] = x
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
@@ -356,7 +368,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
     chir = _chirality(board, np.arange(N))
-    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of, chir, image_noise(full))
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: 1.5 * factor, sm_of, chir, noise)
     # 5. The chessboard beyond the markers read: corners next to found ones, predicted from
     # the found corners around them, kept where they pass the same tests. Poor fits go first,
     # so that none seeds the growth. A grown corner whose sigma is over the typical one is
@@ -371,7 +383,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir)
     _grow(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir, res_of)
-    _recover_symmetric(board, full, out, sig, image_noise(full))
+    _recover_symmetric(board, full, out, sig, noise, {m: found[m][0] for m in confirmed})
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -382,7 +394,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
 
 
 
-def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, noise: float) -> None:
+def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, noise: float,
+                       quads: dict[int, np.ndarray]) -> None:
     """Step 6 of the detection: the corners still missing beside found ones, placed at their
     point of symmetry (the checkerboard's step 9, :func:`camkit.target.checkerboard._symmetric`),
     round by round while corners are added.
@@ -412,7 +425,8 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         spacing = _grid_spacing(out, nx)
         if not np.isfinite(spacing):
             return
-        got = _symmetric_points(full, out, nx, spacing, reach, np.flatnonzero(~found), centre_known=False)
+        got = _symmetric_points(full, out, nx, spacing, reach, np.flatnonzero(~found), centre_known=False,
+                                board=board, quads=quads)
         if got is None:
             return
         cand, pos, cov, wres, centre, du, dv, size = got
@@ -431,10 +445,15 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
                   & (wres <= 2.0 * level + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
         if ok.any():
             k = np.flatnonzero(ok)
-            x, mid, rho = _x_test(board, full, pos[k], size[k], _clearance(board, cand[k], du[k], dv[k]))
-            k, mid, rho = k[x], mid[x], rho[x]
-            k = k[_colours_on_circle(board, full, cand[k], pos[k], du[k], dv[k], mid, rho)]
-            k = k[apart_from_found(pos[k], out[found], 0.5 * size[k])]
+            x, mid, rho, ob = _x_test(board, full, pos[k], size[k], _clearance(board, cand[k], du[k], dv[k]),
+                                      du[k], dv[k])
+            k, mid, rho, ob = k[x], mid[x], rho[x], ob[x]
+            k = k[_colours_on_circle(board, full, cand[k], pos[k], du[k], dv[k], mid, rho, ob)]
+            # Half the way to its nearest neighbour on the board: on a sheared board a diagonal
+            # neighbour lies nearer than a side's length (corpus view 975, 75 degrees: 14 px
+            # against 41).
+            near = np.fmin(size[k], np.fmin(np.hypot(*(du[k] + dv[k]).T), np.hypot(*(du[k] - dv[k]).T)))
+            k = k[apart_from_found(pos[k], out[found], 0.5 * near)]
         else:
             k = np.zeros(0, dtype=np.int64)
         if not len(k):
@@ -444,15 +463,22 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
 
 
 def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float, reach: float, idx: np.ndarray,
-                      centre_known: bool) -> tuple[np.ndarray, ...] | None:
+                      centre_known: bool, board: Charuco | None = None,
+                      quads: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...] | None:
     """The corners ``idx`` of the lattice ``out`` (a row of ``nx``), each at its point of
     symmetry out to ``reach`` squares on its neighbours' local map (with the corner itself
     where ``centre_known``), started from the map's centre: ``(which of idx, place, covariance
     (xx, xy, yy) per unit noise, residuals' noise, the map's centre, a square's steps along
     the board's x and y, the smaller step's length)``, for the corners with a map whose
-    samples lie inside the image and squares of 6 px or more; None where none has."""
+    samples lie inside the image and squares of 6 px or more; None where none has. With the
+    ``board`` and its confirmed markers' ``quads``, a corner with too few neighbours for a
+    map has one from its neighbours and its markers' corners (:func:`_marker_maps`)."""
     H, W = full.shape
     a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=centre_known, only=idx)
+    if board is not None and quads and not usable.all():
+        rest = np.flatnonzero(~usable)
+        got = _marker_maps(board, out, idx[rest], quads, spacing, reach)
+        a[rest], b[rest], usable[rest], centre[rest], du[rest], dv[rest] = got
     size = np.fmin(np.hypot(*du.T), np.hypot(*dv.T))
     with np.errstate(invalid="ignore"):
         extent = np.maximum(np.abs(a).max(axis=(1, 2)), np.abs(b).max(axis=(1, 2))) + 0.15 * size + 4
@@ -472,6 +498,70 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
                                    np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
                                    20, 1e-3, pos, cov, wres)
     return idx[sel], pos - shift, cov, wres, centre, du, dv, size
+
+
+def _marker_maps(board: Charuco, out: np.ndarray, idx: np.ndarray, quads: dict[int, np.ndarray], spacing: float,
+                 reach: float) -> tuple[np.ndarray, ...]:
+    """Local maps (as :func:`~camkit.target.checkerboard._local_maps` returns them, one row per
+    corner of ``idx``) of corners with a confirmed marker (``quads``: id -> (4, 2) image
+    corners) in one of their four squares: the homography of their found neighbours
+    (3 x 3) and their markers' corners, four points or more, usable where it misses none of
+    them by more than :data:`_MARKER_MAP_MISFIT` of a square. A corner at the board's edge, or
+    beside two unread markers, has too few neighbours for a map of its own (corpus view 98:
+    one to three)."""
+    nx, ny = board.squares_x - 1, board.squares_y - 1
+    K = len(idx)
+    ends, k = _map_ends(spacing, reach)
+    scale = max(float(spacing), 1.0)
+    mapped = np.full((K, len(ends), 2), np.nan)
+    cx, cy = idx % nx, idx // nx
+    # The neighbours: board offsets (squares) and places, NaN where not found.
+    offs = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1) if dc or dr], dtype=np.float64)
+    nc, nr = cx[:, None] + offs[None, :, 0].astype(np.int64), cy[:, None] + offs[None, :, 1].astype(np.int64)
+    inb = (nc >= 0) & (nc < nx) & (nr >= 0) & (nr < ny)
+    pix = np.where(inb[..., None], out[np.where(inb, nr * nx + nc, 0)], np.nan)  # (K, 8, 2)
+    src = [np.broadcast_to(offs, (K, 8, 2))]
+    dst = [pix]
+    # The markers in the corner's four squares (X, Y), X in {cx, cx + 1}, Y in {cy, cy + 1}
+    # (the corner is at (cx + 1, cy + 1) squares): their corners, from the corner.
+    ms = board.marker_squares()
+    at = np.full((board.squares_y, board.squares_x), -1)
+    at[ms[:, 1], ms[:, 0]] = np.arange(len(ms))
+    obj = board.marker_corners()[:, :, :2] / board.square  # (M, 4, 2) squares
+    have = np.zeros(len(ms), dtype=bool)
+    img = np.full((len(ms), 4, 2), np.nan)
+    for m, q in quads.items():
+        have[m] = True
+        img[m] = q
+    any_marker = np.zeros(K, dtype=bool)
+    for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
+        mid = at[cy + dy, cx + dx]  # (K,)
+        ok = (mid >= 0) & have[np.maximum(mid, 0)]
+        any_marker |= ok
+        m = np.maximum(mid, 0)
+        src.append(obj[m] - np.stack([cx + 1, cy + 1], axis=-1)[:, None].astype(np.float64))
+        dst.append(np.where(ok[:, None, None], img[m], np.nan))
+    src_all = np.concatenate(src, axis=1)  # (K, 24, 2)
+    dst_all = np.concatenate(dst, axis=1)
+    valid = np.isfinite(dst_all).all(axis=2)
+    count = valid.sum(axis=1)
+    for c in np.unique(count[(count >= 4) & any_marker]):  # one batched fit per number of points
+        rows = np.flatnonzero((count == c) & any_marker)
+        order = np.argsort(~valid[rows], axis=1, kind="stable")[:, :c]  # the valid points first
+        s_ = np.take_along_axis(src_all[rows], order[..., None], axis=1)
+        d_ = np.take_along_axis(dst_all[rows], order[..., None], axis=1)
+        Hs = fit_homographies(s_, d_)
+        miss = np.hypot(*(apply_homographies(Hs, s_) - d_).transpose(2, 0, 1)).max(axis=1)
+        with np.errstate(invalid="ignore"):
+            good = np.isfinite(miss) & (miss <= _MARKER_MAP_MISFIT * scale)
+        if good.any():
+            mapped[rows[good]] = apply_homographies(Hs[good], np.broadcast_to(ends, (int(good.sum()),) + ends.shape))
+    return _split_map(mapped, k, scale)
+
+
+#: A map from a corner's neighbours and its markers' corners is used where its homography
+#: misses none of them by more than this fraction of a square.
+_MARKER_MAP_MISFIT = 0.1
 
 
 #: Step 6 reaches this fraction of the box around a corner inside which a ChArUco board is
@@ -669,29 +759,63 @@ def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -
     return np.nan_to_num(clear, nan=np.inf)
 
 
-def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray,
-            clear: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray, clear: np.ndarray | None,
+            u: np.ndarray | None = None,
+            v: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`x_corner_shades` about corners placed at ``q`` (K, 2), of squares ``size`` px
     across, lying ``clear`` px from their markers (:func:`_clearance`), (K,) each: (is an
-    X-junction, its shades' middle, the circle's radius). The circle is 0.6 of the white
-    margin (1.5 px at least); where that fails and the markers come nearer the corner than the
-    margin's width, it is tried again at 0.6 of their distance. On a sheared board the
-    markers in the acute sectors come that near (corpus view 257, squares of 58 px, margins
-    of 7 px: their borders 4 px away), and a circle that crosses them meets four dark sectors,
-    not two; on a blurred board of small squares a circle of 1.5-2 px does not yet reach the
-    squares' shades (view 390), so the margin's circle is tried first. ``clear`` None: the
-    margin's circle alone."""
+    X-junction, its shades' middle, the circle's radius, whether on the board's circle). The
+    circle is 0.6 of the white margin (1.5 px at least); where that fails and the markers
+    come nearer the corner than the margin's width, it is tried again at 0.6 of their
+    distance. On a sheared board the markers in the acute sectors come that near (corpus view
+    257, squares of 58 px, margins of 7 px: their borders 4 px away), and a circle that
+    crosses them meets four dark sectors, not two; on a blurred board of small squares a
+    circle of 1.5-2 px does not yet reach the squares' shades (view 390), so the margin's
+    circle is tried first. ``clear`` None: the margin's circle alone. Where both fail and
+    ``u``, ``v`` (K, 2: a square's steps along the board's x and y there) are given, a circle
+    on the board is tried (:func:`_board_shades`; the radius returned is then in squares)."""
     margin = 0.5 * (board.square - board.marker) / board.square * size
     rho = np.maximum(0.6 * margin, 1.5)
     x, mid = x_corner_shades(grey, q, rho)
+    on_board = np.zeros(len(q), dtype=bool)
     if clear is None:
-        return x, mid, rho
+        return x, mid, rho, on_board
     near = np.maximum(0.6 * clear, 1.5)
     again = np.flatnonzero(~x & (near < rho))
     if len(again):
         x2, mid2 = x_corner_shades(grey, q[again], near[again])
         x[again], mid[again], rho[again] = x2, mid2, near[again]
-    return x, mid, rho
+    if u is not None and v is not None and not x.all():
+        again = np.flatnonzero(~x)
+        r = _X_BOARD * 0.5 * (board.square - board.marker) / board.square
+        x2, mid2 = _board_shades(grey, q[again], u[again], v[again], r)
+        x[again], mid[again], rho[again], on_board[again] = x2, mid2, r, x2
+    return x, mid, rho, on_board
+
+
+#: The X-test's circle on the board: this fraction of the white margin around a corner.
+_X_BOARD = 0.6
+
+
+def _board_shades(grey: np.ndarray, q: np.ndarray, u: np.ndarray, v: np.ndarray,
+                  r: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`x_corner_shades` on a circle of ``r`` squares on the board about each corner
+    ``q`` (K, 2), through its steps ``u``, ``v`` (K, 2): an ellipse in the image. Seen 70-80
+    degrees from square on, a board's squares meet at angles of 20 degrees: an image circle
+    small enough to stay inside the white margins has one or no sample in the acute
+    sectors, and one as large as the margin's widest part crosses into the markers there
+    (corpus views 89, 491, 842: eight changes of shade). The board's circle gives each square
+    a quarter of its samples and stays inside the margin all round."""
+    ang = np.arange(32) * 2 * np.pi / 32
+    c, s = np.cos(ang)[None], np.sin(ang)[None]
+    val = _sample(grey, q[:, None, 0] + r * (c * u[:, None, 0] + s * v[:, None, 0]),
+                  q[:, None, 1] + r * (c * u[:, None, 1] + s * v[:, None, 1]), "bilinear")
+    sign = val > val.mean(axis=1, keepdims=True)
+    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
+    lo, hi = val.min(axis=1), val.max(axis=1)
+    contrast = hi - lo
+    sym = np.abs(val - np.roll(val, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
+    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), 0.5 * (lo + hi)
 
 
 def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
@@ -728,7 +852,8 @@ def _dark_squares(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndar
 
 
 def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np.ndarray, u: np.ndarray,
-                       v: np.ndarray, mid: np.ndarray, rho: np.ndarray) -> np.ndarray:
+                       v: np.ndarray, mid: np.ndarray, rho: np.ndarray,
+                       on_board: np.ndarray | None = None) -> np.ndarray:
     """Which corners ``cand`` placed at ``q`` (K, 2) are, on the X-test's circle (radius ``rho``
     (K,), shades' middle ``mid`` (K,), :func:`x_corner_shades`), dark along the bisectors
     of the sectors of their two black squares and light along those of their two white ones
@@ -736,14 +861,21 @@ def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np
     near the corner matter, so a marker's homography through a fisheye serves). Where blur
     joins two thin white margins, their crossing beside a marker is a saddle with four
     alternating sectors a few pixels from the corner; it is dark towards the marker's border,
-    where the corner has a white square."""
+    where the corner has a white square. ``on_board``: the corners whose circle is on the
+    board (:func:`_board_shades`, ``rho`` in squares), read at 45 degrees on it."""
     sign = _square_signs(board, cand)[:, None]
     # Along each sector's bisector (the unit steps' sum: a sheared square's diagonal runs close
     # to its long side), towards the black squares (two), then the white ones.
-    u = u / np.maximum(np.hypot(*u.T), 1e-12)[:, None]
-    v = v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
-    diag = np.stack([u + sign * v, -(u + sign * v), u - sign * v, -(u - sign * v)], axis=1)
+    un = u / np.maximum(np.hypot(*u.T), 1e-12)[:, None]
+    vn = v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
+    diag = np.stack([un + sign * vn, -(un + sign * vn), un - sign * vn, -(un - sign * vn)], axis=1)
     diag *= (rho[:, None] / np.maximum(np.hypot(*diag.transpose(2, 0, 1)), 1e-12))[..., None]
+    if on_board is not None and on_board.any():
+        b = np.flatnonzero(on_board)
+        ub, vb = u[b], v[b]
+        sb = sign[b]
+        diag[b] = np.stack([ub + sb * vb, -(ub + sb * vb), ub - sb * vb, -(ub - sb * vb)], axis=1) * (
+            rho[b, None, None] / np.sqrt(2.0))
     on = _sample(grey, q[:, None, 0] + diag[..., 0], q[:, None, 1] + diag[..., 1], "bilinear")
     return (on[:, :2].max(axis=1) < mid) & (on[:, 2:].min(axis=1) > mid)
 
@@ -840,7 +972,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         # (Not the circle clear of the markers: a grown corner's prediction is only its
         # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
         # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
-        x, mid, rho = _x_test(board, full, q[ok], size[k][ok], None)
+        x, mid, rho, _ = _x_test(board, full, q[ok], size[k][ok], None)
         c, qx, ux, vx = cand[k][ok][x], q[ok][x], u[k][ok][x], v[k][ok][x]
         um, vm = _measured_steps(board, out, c, qx, ux, vx)
         x[x] = (_dark_squares(board, full, c, qx, um, vm, mid[x])

@@ -710,13 +710,7 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
         ref = np.where(np.isfinite(pts), pts,
                        np.nansum(np.where(have[..., None], dst, 0.0), axis=1) / np.maximum(count, 1)[:, None])
     rel = np.where(have[..., None], (dst - np.nan_to_num(ref)[:, None]) / scale, 0.0)
-    m = max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX)))
-    t = np.arange(-m, m + 1) * (reach / m)
-    uu, vv = np.meshgrid(t, t)
-    u = np.stack([uu.ravel(), vv.ravel()], axis=1)
-    u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
-    steps = np.array([[0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
-    ends = np.concatenate([np.zeros((1, 2)), u, -u, steps])  # map(0), map(u), map(-u), half steps
+    ends, k = _map_ends(spacing, reach)
 
     def quad_basis(x: np.ndarray) -> np.ndarray:
         return np.stack([np.ones(len(x)), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], axis=1)
@@ -748,7 +742,27 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
         pm[~ok_h] = np.nan
         mapped[homog] = pm
     mapped *= scale
-    k = len(u)
+    a, b, usable, centre, du, dv = _split_map(mapped, k, scale)
+    return a, b, usable, ref + centre, du, dv
+
+
+def _map_ends(spacing: float, reach: float) -> tuple[np.ndarray, int]:
+    """The board offsets (squares) a local map is read at, (2 k + 5, 2): 0, the half grid ``u``
+    of :func:`_symmetric` out to ``reach`` squares (``k`` points, about :data:`_SYM_STEP_PX`
+    apart on squares of ``spacing`` px), ``-u``, and half a square either way along the
+    columns and the rows."""
+    m = max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX)))
+    t = np.arange(-m, m + 1) * (reach / m)
+    uu, vv = np.meshgrid(t, t)
+    u = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
+    steps = np.array([[0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
+    return np.concatenate([np.zeros((1, 2)), u, -u, steps]), len(u)
+
+
+def _split_map(mapped: np.ndarray, k: int, scale: float) -> tuple[np.ndarray, ...]:
+    """A local map read at :func:`_map_ends` ((N, 2 k + 5, 2) pixels) as ``(a, b, usable,
+    map(0), du, dv)`` (see :func:`_local_maps`)."""
     a = mapped[:, 1:k + 1] - mapped[:, :1]
     b = mapped[:, k + 1:2 * k + 1] - mapped[:, :1]
     h = mapped[:, 2 * k + 1:]
@@ -758,7 +772,7 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     with np.errstate(invalid="ignore"):
         spread = np.abs(du[:, 0] * dv[:, 1] - du[:, 1] * dv[:, 0]) > 1e-6 * scale * scale
     usable = np.isfinite(a).all(axis=(1, 2)) & np.isfinite(b).all(axis=(1, 2)) & spread
-    return a, b, usable, ref + mapped[:, 0], du, dv
+    return a, b, usable, mapped[:, 0], du, dv
 
 
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
