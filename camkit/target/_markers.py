@@ -157,20 +157,23 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL
 
 
-def find_quads(g: np.ndarray, min_side: int, opening: bool = False) -> np.ndarray:
+def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple[int, ...] | None = None) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
     threshold at three window sizes (a quad found again at another window kept once). With
     ``opening``, the dark mask is opened by the 3 x 3 cross first, which parts regions that
     touch at a corner (an AprilGrid's tag and its corner squares) and keeps a border two cells
     wide at two pixels a cell, and each window is thresholded twice: 0.03 and 0.15 below the
     local mean (the stricter one parts junctions that blur joins). The masks are made one by
-    one (parallel kernels); their regions labelled side by side on threads."""
+    one (parallel kernels); their regions labelled side by side on threads. ``radii``: the
+    windows' half sides, where not a fraction of the image's size (80th, 30th, 12th)."""
     H, W = g.shape
     ii = np.empty((H + 1, W + 1))
     markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
     masks = []
-    for r, c in [(r, c) for r in sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}) for c in offsets]:
+    if radii is None:
+        radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
+    for r, c in [(r, c) for r in radii for c in offsets]:
         dark = np.empty((H, W), dtype=np.bool_)
         markers_kernels.dark_mask(g, ii, r, c, dark)
         if opening:
@@ -225,8 +228,8 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     (bits blur together there); a finer level's reading replaces a coarser one that read no
     more. On the full image, quads down to :data:`MIN_CELL_PX` a cell are looked for where
     three times the image's noise is at most half the stretch's range, and read where their
-    border is a marker's (:func:`_rims`); a quad with a marker's border that reads as no code
-    is read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
+    border is a marker's (:func:`_rims`); without ``corner_squares``, a quad with a marker's
+    border that reads as no code is read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
     AprilGrid's spacing, over the marker's side): a quad that reads as nothing is read again
     as a marker with such squares joined at some of its corners (a blurred junction joins
     their dark regions), and kept with the marker's own corners.
@@ -261,7 +264,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
                                 else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
         if corner_squares > 0 and (codes < 0).any():
             quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
-        if ((codes < 0) & rimmed).any():
+        if corner_squares == 0 and ((codes < 0) & rimmed).any():
             quads, codes, turns = _read_refined(g, quads, codes, turns, rimmed, d, border)
         # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
         # lie up to a cell off where blur widens or narrows it).
@@ -364,7 +367,9 @@ def _read_refined(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np
     their corners where their sides' edges meet (:func:`refine_quads`): a region's extreme
     pixels lie up to a cell off the marker's corners, which shifts every sample of a marker
     seen at a slant, its cells 2 px across, by half a cell (corpus view 878's markers 16 and
-    23 through a fisheye at 65 degrees)."""
+    23 through a fisheye at 65 degrees). ArUco markers only: an AprilGrid's tag joins its
+    corner squares' dark regions where blurred, and is read so instead (:func:`_read_swollen`);
+    read after refining, one gave a corner 1.4 px off (AprilGrid corpus view 43)."""
     fail = np.flatnonzero((codes < 0) & rimmed)
     n = d.marker_size + 2 * border
     rq = refine_quads(g, quads[fail], n)
@@ -758,6 +763,13 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
             rq = refine_quads(grey, q[miss], d.marker_size + 2 * border)
             ids2, turns2 = read_markers(grey, rq, d, border)
             q[miss], ids[miss], turns[miss] = rq, ids2, turns2
+        # Where that does not read either (a prediction several pixels off: a fisheye's rim),
+        # the marker's quad is looked for around it on the full image (a marker the coarser
+        # level read no quad of: corpus view 100's markers 0, 5 and 11 at 75 degrees, 2-9 px off).
+        for j in np.flatnonzero((ids != np.asarray(inside)) | (turns != 0)):  # a few markers, one by one
+            got = _quad_near(grey, q[j], d, border, inside[j])
+            if got is not None:
+                q[j], ids[j], turns[j] = got, inside[j], 0
         added = False
         for m, i, k, qm in zip(inside, ids, turns, q, strict=True):
             if i == m and k == 0:
@@ -765,6 +777,40 @@ def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.n
                 added = True
         if not added:
             return quads
+
+
+def _quad_near(grey: np.ndarray, pred: np.ndarray, d: ArucoDictionary, border: int, m: int) -> np.ndarray | None:
+    """Marker ``m``'s quad (4, 2) in its code's order, looked for on the square of the full
+    image around its predicted corners ``pred`` (4, 2) that reaches a side beyond them: the
+    quads of that patch (thresholded with windows of a quarter and a half of the marker's
+    side), read as codes (and, with a marker's border, refined and read again), the one that
+    reads as ``m`` with each corner within half a side of its prediction; None where none
+    does."""
+    H, W = grey.shape
+    side = float(np.hypot(*(pred - np.roll(pred, 1, axis=0)).T).max())
+    n = d.marker_size + 2 * border
+    if not np.isfinite(side) or side < MIN_CELL_PX * n:
+        return None
+    lo = np.maximum(np.floor(pred.min(axis=0) - side), 0).astype(np.int64)
+    hi = np.minimum(np.ceil(pred.max(axis=0) + side), [W - 1, H - 1]).astype(np.int64)
+    if (hi - lo < 2 * side).any():
+        return None
+    if isinstance(grey, RawGrey):
+        patch = grey.raw[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1] * grey.a + grey.b
+    else:
+        patch = np.array(grey[lo[1]:hi[1] + 1, lo[0]:hi[0] + 1], dtype=np.float64)
+    quads = find_quads(patch, int(np.ceil(MIN_CELL_PX * n)), opening=border >= 2,
+                       radii=(max(3, int(side / 4)), max(3, int(side / 2))))
+    if not len(quads):
+        return None
+    codes, turns, rimmed = read_markers_rims(patch, quads, d, border)
+    if border == 1 and ((codes < 0) & rimmed).any():
+        quads, codes, turns = _read_refined(patch, quads, codes, turns, rimmed, d, border)
+    for k in np.flatnonzero(codes == m):
+        q = quads[k][(np.arange(4) - turns[k]) % 4] + lo
+        if (np.hypot(*(q - pred).T) <= 0.5 * side).all():
+            return q
+    return None
 
 
 def extend_lattice(P: np.ndarray, X: np.ndarray, Y: np.ndarray, xs: np.ndarray,
