@@ -74,10 +74,11 @@ _RIM_TO_REFINE = 0.6
 
 
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
-                      src: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      src: np.ndarray | None = None,
+                      rim_contrast: float = 0.15) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
-    (:data:`_RIM_TO_REFINE`) against a light margin, as a marker's. All quads at once: their
+    (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All quads at once: their
     homographies from the unit square, one sampling of every cell's 3 x 3 middle points and of
     the white margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
@@ -111,7 +112,8 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     contrast = ok & np.isfinite(white) & (white - black > 0.15)
     good = contrast & (dark >= 0.85)
     # (A black square, its cells all dark, is not a marker a pixel off.)
-    rimmed = contrast & (dark >= _RIM_TO_REFINE) & (cell[:, inner] > t[:, None]).any(axis=1)
+    rimmed = (contrast & (white - black > rim_contrast) & (dark >= _RIM_TO_REFINE)
+              & (cell[:, inner] > t[:, None]).any(axis=1))
     ids = np.full(K, -1, dtype=np.int64)
     turns = np.zeros(K, dtype=np.int64)
     if good.any():
@@ -229,7 +231,8 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     more. On the full image, quads down to :data:`MIN_CELL_PX` a cell are looked for where
     three times the image's noise is at most half the stretch's range, and read where their
     border is a marker's (:func:`_rims`); without ``corner_squares``, a quad with a marker's
-    border that reads as no code is read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
+    border (three times the level's noise darker than its margin) that reads as no code is
+    read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
     AprilGrid's spacing, over the marker's side): a quad that reads as nothing is read again
     as a marker with such squares joined at some of its corners (a blurred junction joins
     their dark regions), and kept with the marker's own corners.
@@ -248,10 +251,11 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
         # 13 px, cells of 1.6) where the image's noise leaves such cells readable: their
         # border three times its sigma darker than their margin, and that at most half the
         # range from black to white (the stretch's 0 to 1).
-        if f == 1 and noise is None:
+        if noise is None:
             noise = image_noise(full)
-        contrast = max(0.15, 3.0 * noise) if f == 1 else 1.0
-        small_ok = contrast <= 0.5
+        # A border three times the level's noise darker than its margin (a 2x2 mean halves it).
+        contrast = max(0.15, 3.0 * noise / f)
+        small_ok = f == 1 and contrast <= 0.5
         quads = find_quads(g, int(np.ceil(MIN_CELL_PX * n_cells)) if small_ok else 2 * n_cells, opening=border >= 2)
         if small_ok and len(quads):
             # The small quads (noise gives many) are read only where their border is a
@@ -260,7 +264,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
             if small.any():
                 small[small] = ~_rims(g, quads[small], n_cells, border, contrast)
                 quads = quads[~small]
-        codes, turns, rimmed = (read_markers_rims(g, quads, d, border) if len(quads)
+        codes, turns, rimmed = (read_markers_rims(g, quads, d, border, rim_contrast=contrast) if len(quads)
                                 else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
         if corner_squares > 0 and (codes < 0).any():
             quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
