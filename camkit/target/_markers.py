@@ -50,6 +50,14 @@ def x_corner_shades(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> tuple
     """:func:`is_x_corner`, and the middle of the darkest and brightest shades on each circle."""
     ang = np.arange(32) * 2 * np.pi / 32
     v = _sample(grey, pts[:, :1] + rho[:, None] * np.cos(ang), pts[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
+    return x_shades(v)
+
+
+def x_shades(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For shades ``v`` (K, 32) sampled round a closed curve about each corner (a circle, or an
+    ellipse on a board seen aslant): whether they are an X-junction's (four alternating
+    sectors about their mean, point-symmetric, a contrast of 0.15 at least), and the middle
+    of the darkest and brightest."""
     sign = v > v.mean(axis=1, keepdims=True)
     changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
     lo, hi = v.min(axis=1), v.max(axis=1)

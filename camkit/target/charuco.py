@@ -119,6 +119,7 @@ from camkit.target._markers import (
     refine_patches,
     unconfirmed_reason,
     x_corner_shades,
+    x_shades,
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
@@ -808,14 +809,8 @@ def _board_shades(grey: np.ndarray, q: np.ndarray, u: np.ndarray, v: np.ndarray,
     a quarter of its samples and stays inside the margin all round."""
     ang = np.arange(32) * 2 * np.pi / 32
     c, s = np.cos(ang)[None], np.sin(ang)[None]
-    val = _sample(grey, q[:, None, 0] + r * (c * u[:, None, 0] + s * v[:, None, 0]),
-                  q[:, None, 1] + r * (c * u[:, None, 1] + s * v[:, None, 1]), "bilinear")
-    sign = val > val.mean(axis=1, keepdims=True)
-    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
-    lo, hi = val.min(axis=1), val.max(axis=1)
-    contrast = hi - lo
-    sym = np.abs(val - np.roll(val, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
-    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), 0.5 * (lo + hi)
+    return x_shades(_sample(grey, q[:, None, 0] + r * (c * u[:, None, 0] + s * v[:, None, 0]),
+                            q[:, None, 1] + r * (c * u[:, None, 1] + s * v[:, None, 1]), "bilinear"))
 
 
 def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
