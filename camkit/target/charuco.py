@@ -39,7 +39,11 @@ Detection reads the markers first, then places the chessboard corners by their s
    board (four turns, every shift) scored by the correlation of its marker squares with the
    codes it puts there; the best is taken only where it stands :data:`_BOARD_Z` standard
    deviations above chance and :data:`_BOARD_MARGIN` above the next placement, and its
-   markers are confirmed as those read one by one;
+   markers are confirmed as those read one by one. A marker not read is read where its
+   confirmed neighbours put it, or where that does not read, at its sides' edges there, or
+   at a quad looked for on the full image around that place
+   (:func:`~camkit.target._markers.recover_markers`), and kept where it reads as its id the
+   right way up;
 4. each chessboard corner next to a confirmed marker is predicted from them (where both
    markers touching it are confirmed, the midpoint of their corners nearest it, which lie
    either side of it on a diagonal, else its marker's homography) and placed at the saddle
