@@ -86,9 +86,9 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
                       rim_contrast: float = 0.15) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
-    (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All quads at once: their
-    homographies from the unit square, one sampling of every cell's 3 x 3 middle points and of
-    the white margin around each. The code's cells are inside a black border ``border`` cells
+    (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All
+    quads at once: their homographies from the unit square, one sampling of every cell's 3 x 3
+    middle points and of the white margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
     lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
     corners."""
@@ -313,7 +313,7 @@ def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int =
     :func:`camkit._kernels.markers.refine_quads`). Run ``iters`` times; a round in which a
     corner would lie more than a cell from the quad's, or a side's edge is not found, is not
     taken. A quad that is not finite is returned as it came. A :class:`RawGrey` is read on a
-    square around each quad only (two cells and 3 px beyond its farthest corner)."""
+    square around each quad only (its farthest corner, two to three cells and 3 px beyond)."""
     quads = np.asarray(quads, dtype=np.float64)
     out = quads.copy()
     ok = np.isfinite(quads).all(axis=(1, 2))
