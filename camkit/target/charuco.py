@@ -535,9 +535,9 @@ def _marker_maps(board: Charuco, out: np.ndarray, idx: np.ndarray, quads: dict[i
     obj = board.marker_corners()[:, :, :2] / board.square  # (M, 4, 2) squares
     have = np.zeros(len(ms), dtype=bool)
     img = np.full((len(ms), 4, 2), np.nan)
-    for m, q in quads.items():
-        have[m] = True
-        img[m] = q
+    mids = np.fromiter(quads, dtype=np.int64, count=len(quads))
+    have[mids] = True
+    img[mids] = np.stack(list(quads.values()))
     any_marker = np.zeros(K, dtype=bool)
     for dx, dy in ((0, 0), (1, 0), (0, 1), (1, 1)):
         mid = at[cy + dy, cx + dx]  # (K,)
