@@ -100,8 +100,13 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     the centroid (a), the farthest from a (b), and the farthest from the line ab on either
     side (e, f), as (a, e, b, f), the first in raster order where several are as far. A
     distance from a point is convex along a run and from a line linear, so only a run's ends
-    are looked at. The area of a region without a quad (left out, or all on one side of ab)
-    is made negative."""
+    are looked at. Where that quad covers under 0.6 of the region (a sliver: a marker seen
+    nearly edge on, whose two farthest pixels can be the ends of one long side) or the box
+    is too thin or too empty for it, the quad is the largest one on the corners of the
+    region's convex hull (:func:`_hull_quad`), kept where the region fills 0.35 of it at
+    least (a curve or a cable does not) and it covers 0.6 of the region; ``stats[:, 5]`` is 1
+    for those. The area of a region without a quad (left out, or all on one side of ab) is
+    made negative."""
     H, W = mask.shape
     nr, ry, r0, r1 = _runs(mask)
     parent = np.arange(nr)
@@ -137,7 +142,7 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
             n += 1
     for k in range(nr):
         region[k] = region[_find(parent, k)]
-    stats = np.empty((n, 5), dtype=np.int64)
+    stats = np.empty((n, 6), dtype=np.int64)
     sx = np.zeros(n)
     sy = np.zeros(n)
     for k in range(n):
@@ -146,6 +151,7 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
         stats[k, 2] = H
         stats[k, 3] = -1
         stats[k, 4] = -1
+        stats[k, 5] = 0
     for k in range(nr):
         g = region[k]
         ln = r1[k] - r0[k] + 1
@@ -172,10 +178,13 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
         area = stats[g, 0]
         w = stats[g, 3] - stats[g, 1] + 1
         h = stats[g, 4] - stats[g, 2] + 1
-        # A quad's box: not too thin, and a fifth of it filled at least (a curve or a cable is not).
-        if not (min_area <= area <= max_area and min(w, h) >= min_side and max(w, h) <= 8 * min(w, h)
-                and 5 * area >= w * h):
+        if not (min_area <= area <= max_area and min(w, h) >= min_side):
             stats[g, 0] = -area
+            continue
+        # A quad's box: not too thin, and a fifth of it filled at least (a curve or a cable is
+        # not); else the hull's quad.
+        if not (max(w, h) <= 8 * min(w, h) and 5 * area >= w * h):
+            _hull_quad(g, area, start, order, ry, r0, r1, stats, quads)
             continue
         cx, cy = sx[g] / area, sy[g] / area
         best = -1.0
@@ -209,9 +218,97 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
         quads[g, 1, 0], quads[g, 1, 1] = ex, ey
         quads[g, 2, 0], quads[g, 2, 1] = bx, by
         quads[g, 3, 0], quads[g, 3, 1] = fx, fy
-        if not (hi > 0 and lo < 0):
-            stats[g, 0] = -area
+        if not (hi > 0 and lo < 0 and abs(_shoelace(quads[g])) >= 0.6 * area):
+            _hull_quad(g, area, start, order, ry, r0, r1, stats, quads)
     return stats, quads
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _shoelace(q: np.ndarray) -> float:  # pragma: no cover - numba
+    """The signed area of the polygon ``q`` (P, 2)."""
+    s = 0.0
+    P = q.shape[0]
+    for i in range(P):
+        j = (i + 1) % P
+        s += q[i, 0] * q[j, 1] - q[j, 0] * q[i, 1]
+    return 0.5 * s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _tri2(hx: np.ndarray, hy: np.ndarray, i: int, j: int, k: int) -> float:  # pragma: no cover - numba
+    """Twice the signed area of the hull's triangle (i, j, k)."""
+    return (hx[j] - hx[i]) * (hy[k] - hy[i]) - (hy[j] - hy[i]) * (hx[k] - hx[i])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.ndarray, r0: np.ndarray,
+               r1: np.ndarray, stats: np.ndarray, quads: np.ndarray) -> None:  # pragma: no cover - numba
+    """Region ``g``'s quad (see :func:`region_quads`): the largest quadrilateral on the corners
+    of the convex hull of its runs' ends (Andrew's monotone chain over the rows' outer ends,
+    already in (y, x) order; then, for each first corner, the third swept round the hull with
+    the best second and fourth corners following it, as the area is unimodal along a convex
+    polygon's side between two fixed corners). Kept (``stats[g, 5]`` 1) where the region
+    fills 0.35 of the quad at least and the quad covers 0.6 of the region; else the region's
+    area is made negative."""
+    nrow = 0
+    last = -1
+    for t in range(start[g], start[g + 1]):
+        if ry[order[t]] != last:
+            nrow += 1
+            last = ry[order[t]]
+    px = np.empty(2 * nrow)
+    py = np.empty(2 * nrow)
+    m = -1
+    last = -1
+    for t in range(start[g], start[g + 1]):  # each row's first and last pixel, in (y, x) order
+        k = order[t]
+        if ry[k] != last:
+            m += 2
+            last = ry[k]
+            px[m - 1], py[m - 1] = r0[k], ry[k]
+        px[m], py[m] = r1[k], ry[k]
+    P = 2 * nrow
+    hx = np.empty(2 * P)
+    hy = np.empty(2 * P)
+    h = 0
+    for i in range(P):  # lower chain
+        while h >= 2 and (hx[h - 1] - hx[h - 2]) * (py[i] - hy[h - 2]) - (hy[h - 1] - hy[h - 2]) * (px[i] - hx[h - 2]) <= 0:
+            h -= 1
+        hx[h], hy[h] = px[i], py[i]
+        h += 1
+    lo = h + 1
+    for i in range(P - 2, -1, -1):  # upper chain
+        while h >= lo and (hx[h - 1] - hx[h - 2]) * (py[i] - hy[h - 2]) - (hy[h - 1] - hy[h - 2]) * (px[i] - hx[h - 2]) <= 0:
+            h -= 1
+        hx[h], hy[h] = px[i], py[i]
+        h += 1
+    m = h - 1  # the first point closes the chain
+    if m < 4:
+        stats[g, 0] = -area
+        return
+    best = 0.0
+    bi, bj, bk, bl = 0, 1, 2, 3
+    for i in range(m):
+        j = i + 1
+        l = i + 3
+        for k in range(i + 2, i + m - 1):
+            if j >= k:
+                j = k - 1
+            while j + 1 < k and _tri2(hx, hy, i % m, (j + 1) % m, k % m) >= _tri2(hx, hy, i % m, j % m, k % m):
+                j += 1
+            if l <= k:
+                l = k + 1
+            while l + 1 < i + m and _tri2(hx, hy, k % m, (l + 1) % m, i % m) >= _tri2(hx, hy, k % m, l % m, i % m):
+                l += 1
+            a2 = _tri2(hx, hy, i % m, j % m, k % m) + _tri2(hx, hy, k % m, l % m, i % m)
+            if a2 > best:
+                best, bi, bj, bk, bl = a2, i % m, j % m, k % m, l % m
+    if not (area >= 0.35 * 0.5 * best and 0.5 * best >= 0.6 * area):
+        stats[g, 0] = -area
+        return
+    for c, v in enumerate((bi, bj, bk, bl)):
+        quads[g, c, 0], quads[g, c, 1] = hx[v], hy[v]
+    stats[g, 5] = 1
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

@@ -141,8 +141,10 @@ def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
     w = stats[:, 3] - stats[:, 1] + 1
     h = stats[:, 4] - stats[:, 2] + 1
     shoelace = quad_area(quads)
-    # A quad, not a triangle or a blob: its four corners span most of the region's area.
-    ok = (area > 0) & (np.maximum(w, h) <= 8 * np.minimum(w, h)) & (np.abs(shoelace) >= 0.6 * area)
+    # A quad, not a triangle or a blob: its four corners span most of the region's area (a
+    # hull's quad, stats[:, 5], was judged so by the kernel, whatever its box).
+    hull = stats[:, 5] == 1
+    ok = (area > 0) & (hull | (np.maximum(w, h) <= 8 * np.minimum(w, h))) & (np.abs(shoelace) >= 0.6 * area)
     return np.where((shoelace > 0)[:, None, None], quads, quads[:, ::-1])[ok]
 
 

@@ -595,6 +595,20 @@ def test_markers_of_cells_under_two_pixels_are_read_on_the_full_image():
     assert find_markers(_to_grey(noise, lazy=True), board.aruco)[0] == {}
 
 
+def test_markers_seen_nearly_edge_on_are_found_as_quads_of_their_regions_hulls():
+    """Corpus view 383 (barrel lens, noise, 83 degrees from square on): markers 3 and 7 are
+    slivers (marker 7: sides of 163 and 134 px, ends of 16 and 29 px), whose two farthest
+    pixels are the ends of one long side, so the region's quad from its extreme pixels covered
+    a fraction of it and no marker was read (OpenCV reads both and returns corner 6). Such a
+    region's quad is now the largest on its convex hull's corners."""
+    from benchmarks.charuco_corpus import view
+
+    board, _, _, _, img, truth, _ = view(383)
+    det = board.detect(img)
+    err = dict(zip(det.ids.tolist(), np.hypot(*(det.pixels - truth.corners_px[det.ids]).T), strict=True))
+    assert 6 in err and err[6] < 0.1 and max(err.values()) < 1.0, err
+
+
 def test_a_corner_with_few_neighbours_is_mapped_through_its_markers_corners():
     """Step 6 places a missing corner at its point of symmetry on its neighbours' local map,
     which needs four of them. At the board's edge, or beside two unread markers, a corner has
