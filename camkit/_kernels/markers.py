@@ -241,6 +241,12 @@ def _tri2(hx: np.ndarray, hy: np.ndarray, i: int, j: int, k: int) -> float:  # p
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _turn(hx: np.ndarray, hy: np.ndarray, h: int, x: float, y: float) -> float:  # pragma: no cover - numba
+    """Twice the signed area of the chain's last two points and (x, y): > 0 where it turns left."""
+    return (hx[h - 1] - hx[h - 2]) * (y - hy[h - 2]) - (hy[h - 1] - hy[h - 2]) * (x - hx[h - 2])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.ndarray, r0: np.ndarray,
                r1: np.ndarray, stats: np.ndarray, quads: np.ndarray) -> None:  # pragma: no cover - numba
     """Region ``g``'s quad (see :func:`region_quads`): the largest quadrilateral on the corners
@@ -272,13 +278,13 @@ def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.n
     hy = np.empty(2 * P)
     h = 0
     for i in range(P):  # lower chain
-        while h >= 2 and (hx[h - 1] - hx[h - 2]) * (py[i] - hy[h - 2]) - (hy[h - 1] - hy[h - 2]) * (px[i] - hx[h - 2]) <= 0:
+        while h >= 2 and _turn(hx, hy, h, px[i], py[i]) <= 0:
             h -= 1
         hx[h], hy[h] = px[i], py[i]
         h += 1
     lo = h + 1
     for i in range(P - 2, -1, -1):  # upper chain
-        while h >= lo and (hx[h - 1] - hx[h - 2]) * (py[i] - hy[h - 2]) - (hy[h - 1] - hy[h - 2]) * (px[i] - hx[h - 2]) <= 0:
+        while h >= lo and _turn(hx, hy, h, px[i], py[i]) <= 0:
             h -= 1
         hx[h], hy[h] = px[i], py[i]
         h += 1
