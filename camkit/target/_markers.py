@@ -598,12 +598,13 @@ class TypicalSigma:
         return self._typical(r, self.smoothing(r) if s is None else float(s), g)[1]
 
     def passes(self, sig: np.ndarray, win: np.ndarray, ratio: float, sm: np.ndarray | None = None,
-               group: np.ndarray | None = None, res: np.ndarray | None = None) -> np.ndarray:
+               group: np.ndarray | None = None, res: np.ndarray | None = None,
+               cap: float = MAX_LOW_CONTRAST_SIGMA) -> np.ndarray:
         """Which fits (sigmas ``sig`` (N,) with windows ``win`` (N,), smoothings ``sm`` (N,),
         default ``smoothing(win)``, in groups ``group`` (N,), default all one) are at most
         ``ratio`` times the typical sigma for their triple, or, given their residuals' standard
         deviations ``res`` (N,), whose residuals are at most ``ratio`` times the typical ones
-        and whose sigma is at most :data:`MAX_LOW_CONTRAST_SIGMA`; NaN sigmas do not pass. A
+        and whose sigma is at most ``cap`` (:data:`MAX_LOW_CONTRAST_SIGMA`); NaN sigmas do not pass. A
         triple is refitted only where one of its fits is over ``ratio`` times the floor (the
         typical sigma is never below it).
 
@@ -626,7 +627,7 @@ class TypicalSigma:
                 if res is not None:
                     held = sig[k] if self.noise is None else noise_sigma(sig[k], res[k], r, s, self.noise)
                     with np.errstate(invalid="ignore"):
-                        ok[k] |= (res[k] <= ratio * typ_res) & (held <= MAX_LOW_CONTRAST_SIGMA)
+                        ok[k] |= (res[k] <= ratio * typ_res) & (held <= cap)
         return ok
 
 
@@ -679,12 +680,16 @@ def _local_fits(rel: np.ndarray, near: np.ndarray, wide: np.ndarray, pts: np.nda
     return out
 
 
-def predict_points(obj: np.ndarray, pts: np.ndarray, query: np.ndarray, radius: float) -> np.ndarray:
+def predict_points(obj: np.ndarray, pts: np.ndarray, query: np.ndarray, radius: float,
+                   usable: np.ndarray | None = None) -> np.ndarray:
     """Image places of the target-frame points ``query`` (K, 2) from the found points (``obj``
-    (N, 2), ``pts`` (N, 2)) around each (:func:`_local_fits`); NaN where too few are near."""
+    (N, 2), ``pts`` (N, 2)) around each (:func:`_local_fits`), those of ``usable`` (K, N) only
+    where given; NaN where too few are near."""
     rel = (obj[None, :, :] - query[:, None, :]) / radius
     reach = np.abs(rel).max(axis=2)
-    return _local_fits(rel, reach <= 1.0, reach <= 1.6, pts)
+    if usable is None:
+        return _local_fits(rel, reach <= 1.0, reach <= 1.6, pts)
+    return _local_fits(rel, (reach <= 1.0) & usable, (reach <= 1.6) & usable, pts)
 
 
 def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.ndarray) -> np.ndarray:
@@ -723,11 +728,13 @@ def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.n
     return keep
 
 
-def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarray],
+                    misfit: dict[int, float] | None = None) -> dict[int, np.ndarray]:
     """Where each of the board's markers should be, from its neighbours: for every marker with
     one or more markers of ``quads`` (id -> (4, 2) image corners) within one place of it on the
     layout ``grid`` (itself left out), its corners ``obj`` (M, 4, 2) through the least-squares
-    homography of those neighbours' corners. One fit per marker, batched by neighbour count."""
+    homography of those neighbours' corners. One fit per marker, batched by neighbour count.
+    ``misfit``, where given, is filled with each fit's largest miss of those corners (px)."""
     have = np.array(sorted(quads), dtype=np.int64)
     if not len(have):
         return {}
@@ -742,10 +749,14 @@ def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarr
         idx = np.searchsorted(have, nb)
         src = obj[nb].reshape(len(ms), 4 * c, 2)
         dst = img[idx].reshape(len(ms), 4 * c, 2)
-        pred = apply_homographies(fit_homographies(src, dst), obj[ms])
-        for m, q in zip(ms, pred, strict=True):
+        Hs = fit_homographies(src, dst)
+        pred = apply_homographies(Hs, obj[ms])
+        miss = np.hypot(*(apply_homographies(Hs, src) - dst).transpose(2, 0, 1)).max(axis=1)
+        for m, q, e in zip(ms, pred, miss, strict=True):
             if np.isfinite(q).all():
                 out[int(m)] = q
+                if misfit is not None:
+                    misfit[int(m)] = float(e)
     return out
 
 

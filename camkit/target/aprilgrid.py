@@ -30,8 +30,11 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    squares joined at some of its corners (a blurred junction joins them);
 2. the cells read against the family with its error correction, ids checked against the grid
    and confirmed by a neighbour (one homography through both tags' corners);
-3. a confirmed tag's corner that its neighbours put a third of a corner square or more away is
-   taken from them, and tags not read are read where their neighbours put them;
+3. a confirmed tag's corner that the other tags' corners put a third of a corner square or
+   more away is taken from them, where that is a joined corner square's signature (the
+   corner outwards along the tag's diagonal by about a square, on a local map of the corners
+   around) or the tags around fit one homography; tags not read are read where their
+   neighbours put them;
 4. each corner at its saddle point (camkit's sub-pixel estimator; the X-junction's circle
    and the fit's reach scaled by the tag's shortest side, the window and its smoothing by
    how narrow the tag is, its area over its longer sides: a tilted tag's border and corner
@@ -50,7 +53,8 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 5. each tag is read again through its corners as found: a tag that no longer reads as itself
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
-   of a tag; a fisheye's bend over that reach is under 4.5 %), worst first.
+   of its tag, or of the grid's median tag where larger; a fisheye's bend over that reach is
+   under 4.5 %), worst first.
 """
 
 from __future__ import annotations
@@ -237,14 +241,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
                                       f"({grid.family})")
     quads = {m: found[m][0] for m in confirmed}
-    # A tag's dark region joined to a corner square puts that corner at the square's far
-    # side: each corner where the tag's neighbours put it a third of a corner square or more
-    # away is taken from them.
-    for m, q in neighbour_quads(obj, places, quads).items():
-        if m in quads:
-            b_px = grid.tag_spacing * float(np.sqrt(abs(quad_area(quads[m]))))
-            off = np.hypot(*(quads[m] - q).T) > max(2.0 * factor, b_px / 3.0)
-            quads[m] = np.where(off[:, None], q, quads[m])
+    quads = _unjoined(grid, quads, factor)
     # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
     quads = recover_markers(full, grid.aruco, BORDER_BITS, obj, places, quads)
     tags = sorted(quads)
@@ -300,12 +297,15 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # Every corner against its neighbours (the other corners within 1.6 pitches): one at the
     # wrong X-junction (a tag's neighbour's corner, a corner square away) misses by that
     # square, one fitted on a blurred or cut junction by a fraction of it. The tolerance, 6 %
-    # of a tag (0.4 of a corner square at most, 0.6 px at the level read at least), holds the
-    # bend of a fisheye over a pitch and a half (true corners miss by up to 4.5 % of a tag).
+    # of a tag (its own where larger than the grid's median: a tag of 200 px in the middle of
+    # a fisheye's view, twice the median, missed by up to 9 px, corpus view 89; 0.4 of its
+    # own corner square at most, 0.6 px at the level read at least), holds the bend of a
+    # fisheye over a pitch and a half (true corners miss by up to 4.5 % of a tag).
     seen = np.flatnonzero(np.isfinite(out).all(axis=1))
-    tag_side = _tag_px(grid, out)
-    tol = max(0.6 * factor, min(0.06 * tag_side, 0.4 * grid.tag_spacing * tag_side))
-    ok = consistent_points(obj2[seen], out[seen], 1.6 * grid.pitch, np.full(len(seen), tol))
+    own, overall = _tag_px(grid, out)
+    own = own[seen]
+    tol = np.maximum(0.6 * factor, np.minimum(0.06 * np.maximum(own, overall), 0.4 * grid.tag_spacing * own))
+    ok = consistent_points(obj2[seen], out[seen], 1.6 * grid.pitch, tol)
     out[seen[~ok]] = np.nan
     sig[seen[~ok]] = np.nan
     n_found = int(np.isfinite(out).all(axis=1).sum())
@@ -315,6 +315,59 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
+
+
+def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dict[int, np.ndarray]:
+    """The confirmed tags' quads (id -> (4, 2) image corners) with each corner that the other
+    tags' corners put a third of a corner square or more away (2 px at the level read at
+    least) taken from them: a tag's dark region joined to a corner square puts that corner
+    at the square's far side. The prediction is a local map of the other tags' corners
+    around the corner (:func:`~camkit.target._markers.predict_points`' quadratic within one
+    pitch or 1.6, affine on four to seven), first on all of them, then without the corners
+    so judged off; taken only where the corner lies outwards of it, along the tag's
+    diagonal, by half to twice a corner square (at most half a square across). Where the
+    tags beside it fit one homography (missing their corners by at most half the tolerance)
+    or too few corners are around for that map, the prediction is that homography
+    (:func:`~camkit.target._markers.neighbour_quads`), taken wherever it is that far off.
+    That homography alone was used before: through a fisheye it put corners 5-18 px off and
+    replaced corners found within 2 px (AprilGrid corpus view 133: 79 of 168 corners
+    lost)."""
+    tags = np.array(sorted(quads), dtype=np.int64)
+    if len(tags) < 2:
+        return quads
+    obj = grid.tag_corners()[tags].reshape(-1, 2)
+    pts = np.concatenate([quads[m] for m in tags])
+    owner = np.repeat(np.arange(len(tags)), 4)
+    b_px = grid.tag_spacing * np.sqrt(np.abs(quad_area(np.stack([quads[m] for m in tags]))))
+    b = np.repeat(b_px, 4)
+    tol = np.maximum(2.0 * factor, b / 3.0)
+    # Outwards: from the tag's centre through the corner (a joined corner square lies on
+    # that diagonal, beyond the corner).
+    centre = np.repeat(np.stack([quads[m].mean(axis=0) for m in tags]), 4, axis=0)
+    u = pts - centre
+    u /= np.maximum(np.hypot(*u.T), 1e-12)[:, None]
+    other = owner[:, None] != owner[None, :]  # (k, j): j on another tag than k
+    # The homography of the tags beside it, where it fits them (or too few corners are
+    # around for a local map).
+    miss: dict[int, float] = {}
+    nbr = neighbour_quads(grid.tag_corners(), grid.tag_places(), quads, miss)
+    fallback = np.concatenate([nbr.get(int(m), np.full((4, 2), np.nan)) for m in tags])
+    fits = np.repeat([miss.get(int(m), np.inf) <= 0.5 * t for m, t in zip(tags, tol[::4], strict=True)], 4)
+    off = np.zeros(len(obj), dtype=bool)
+    for _ in range(2):
+        pred = predict_points(obj, pts, obj, grid.pitch, usable=other & ~off[None, :])
+        local = np.isfinite(pred).all(axis=1) & ~fits
+        pred[~local] = fallback[~local]
+        d = pts - pred
+        along = np.einsum("ij,ij->i", d, u)
+        across = np.abs(d[:, 0] * u[:, 1] - d[:, 1] * u[:, 0])
+        with np.errstate(invalid="ignore"):
+            off = (np.hypot(*d.T) > tol) & (~local | ((along >= 0.5 * b) & (along <= 2.0 * b) & (across <= 0.5 * b)))
+    out = dict(quads)
+    for t in np.unique(owner[off]):
+        k = np.flatnonzero(owner == t)
+        out[int(tags[t])] = np.where(off[k, None], pred[k], pts[k])
+    return out
 
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
@@ -356,20 +409,35 @@ def _smoothing(r: int, factor: int) -> float:
     return float(np.clip(r / 1.5, 1.5, 1.5 * factor))
 
 
-def _tag_px(grid: AprilGrid, out: np.ndarray) -> float:
-    """A tag's side in pixels: the median over the tags' sides whose two corners are found."""
+def _tag_px(grid: AprilGrid, out: np.ndarray) -> tuple[np.ndarray, float]:
+    """Tags' sides in pixels: each point's tag's (N,), the median of its tag's sides whose two
+    corners are found, or where it has none, the grid's; and the grid's, the median over all
+    the tags' such sides (0 where none is). A fisheye's tags differ twofold and more in size
+    across the image."""
     ids = grid.tag_point_ids()
     have = np.isfinite(out[ids]).all(axis=2)  # (T, 4)
-    sides = []
-    for a, b in ((0, 1), (1, 2), (2, 3), (3, 0)):
+    sides = np.full((len(ids), 4), np.nan)
+    for j, (a, b) in enumerate(((0, 1), (1, 2), (2, 3), (3, 0))):
         both = have[:, a] & have[:, b]
-        sides.append(np.hypot(*(out[ids[both, a]] - out[ids[both, b]]).T))
-    s = np.concatenate(sides)
-    return float(np.median(s)) if s.size else 0.0
+        sides[both, j] = np.hypot(*(out[ids[both, a]] - out[ids[both, b]]).T)
+    seen = np.isfinite(sides)
+    overall = float(np.median(sides[seen])) if seen.any() else 0.0
+    own = np.full(len(ids), overall)
+    any_side = seen.any(axis=1)
+    own[any_side] = np.nanmedian(sides[any_side], axis=1)
+    per_point = np.full(len(out), overall)
+    per_point[ids] = own[:, None]
+    return per_point, overall
 
 
 #: How far (in corner squares) a point grown past the tags read may move from its prediction.
 _GROWN_REACH = 0.25
+#: A grown point whose sigma is over the typical one but whose residuals are not (a junction
+#: of less contrast) is kept only where its sigma is at most this (px): labelled by its
+#: neighbours alone, it must lie well within a pixel of its junction (as ChArUco's step 6).
+#: A blurred junction of corner squares of 5 px fitted so, sigma 0.23 px, lay 1.4 px off
+#: (corpus view 43, corner 92).
+_MAX_GROWN_LOW_CONTRAST_SIGMA = 0.1
 
 
 def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int,
@@ -381,7 +449,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     corner square of it (0.45 for a tag's own corners), on no other found point, and with a
     fit's sigma at most 1.5 times ``typical``'s for its window (no code vouches for it), or its
     residuals (recorded in ``res_of``) at most that times the typical ones with a sigma of at
-    most a quarter of a pixel (a junction of less contrast: :meth:`TypicalSigma.passes`). A
+    most :data:`_MAX_GROWN_LOW_CONTRAST_SIGMA` (a junction of less contrast:
+    :meth:`TypicalSigma.passes`). A
     point is tried again only once more of its neighbours are found. The check of every point
     against its neighbours that follows (:func:`consistent_points`) covers these too."""
     nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
@@ -408,7 +477,7 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
         got[got] = typical.passes(tsig[cand[got]], twin[cand[got]], 1.5,  # no code vouches for it
-                                  res=tres[cand[got]])
+                                  res=tres[cand[got]], cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
         win_of[cand[got]] = twin[cand[got]]
