@@ -326,8 +326,9 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dic
     pitch or 1.6, affine on four to seven), first on all of them, then without the corners
     so judged off; taken only where the corner lies outwards of it, along the tag's
     diagonal, by half to twice a corner square (at most half a square across). Where the
-    tags beside it fit one homography (missing their corners by at most half the tolerance)
-    or too few corners are around for that map, the prediction is that homography
+    tags beside it fit one homography (missing their corners by at most half the tolerance;
+    a single tag beside it fits one exactly, so there it is used as before) or too few
+    corners are around for that map, the prediction is that homography
     (:func:`~camkit.target._markers.neighbour_quads`), taken wherever it is that far off.
     That homography alone was used before: through a fisheye it put corners 5-18 px off and
     replaced corners found within 2 px (AprilGrid corpus view 133: 79 of 168 corners
