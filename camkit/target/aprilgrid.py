@@ -337,15 +337,14 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dic
     if len(tags) < 2:
         return quads
     obj = grid.tag_corners()[tags].reshape(-1, 2)
-    pts = np.concatenate([quads[m] for m in tags])
+    tq = np.stack([quads[m] for m in tags])  # (T, 4, 2)
+    pts = tq.reshape(-1, 2)
     owner = np.repeat(np.arange(len(tags)), 4)
-    b_px = grid.tag_spacing * np.sqrt(np.abs(quad_area(np.stack([quads[m] for m in tags]))))
-    b = np.repeat(b_px, 4)
+    b = np.repeat(grid.tag_spacing * np.sqrt(np.abs(quad_area(tq))), 4)
     tol = np.maximum(2.0 * factor, b / 3.0)
     # Outwards: from the tag's centre through the corner (a joined corner square lies on
     # that diagonal, beyond the corner).
-    centre = np.repeat(np.stack([quads[m].mean(axis=0) for m in tags]), 4, axis=0)
-    u = pts - centre
+    u = pts - np.repeat(tq.mean(axis=1), 4, axis=0)
     u /= np.maximum(np.hypot(*u.T), 1e-12)[:, None]
     other = owner[:, None] != owner[None, :]  # (k, j): j on another tag than k
     # The homography of the tags beside it, where it fits them (or too few corners are
@@ -364,11 +363,9 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dic
         across = np.abs(d[:, 0] * u[:, 1] - d[:, 1] * u[:, 0])
         with np.errstate(invalid="ignore"):
             off = (np.hypot(*d.T) > tol) & (~local | ((along >= 0.5 * b) & (along <= 2.0 * b) & (across <= 0.5 * b)))
-    out = dict(quads)
-    for t in np.unique(owner[off]):
-        k = np.flatnonzero(owner == t)
-        out[int(tags[t])] = np.where(off[k, None], pred[k], pts[k])
-    return out
+    moved = off.reshape(-1, 4).any(axis=1)
+    new = np.where(off[:, None], pred, pts).reshape(-1, 4, 2)
+    return {**quads, **{int(m): new[i] for i, m in enumerate(tags) if moved[i]}}
 
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
@@ -451,9 +448,9 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
     fit's sigma at most 1.5 times ``typical``'s for its window (no code vouches for it), or its
     residuals (recorded in ``res_of``) at most that times the typical ones with a sigma of at
     most :data:`_MAX_GROWN_LOW_CONTRAST_SIGMA` (a junction of less contrast:
-    :meth:`TypicalSigma.passes`). A
-    point is tried again only once more of its neighbours are found. The check of every point
-    against its neighbours that follows (:func:`consistent_points`) covers these too."""
+    :meth:`TypicalSigma.passes`). A point is tried again only once more of its neighbours are
+    found. The check of every point against its neighbours that follows
+    (:func:`consistent_points`) covers these too."""
     nx, ny = 2 * grid.tags_x, 2 * grid.tags_y
     T = grid.tag_size
     idx_x, idx_y = np.arange(-3, nx + 3), np.arange(-3, ny + 3)
