@@ -352,12 +352,14 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     res_of = np.full(N, np.nan)
     clear = _clearance(board, cand, u, v)
     win, smooth = _windows(size[cand], clear, factor)
-    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
-        k = (win == r) & (smooth == sm)
+
+    def fit(r: int, sm: float, k: np.ndarray) -> np.ndarray:
+        """Fit the corners ``k`` (a mask of ``cand``) with window ``r`` and smoothing ``sm``,
+        keep those that pass; return the mask of those whose fit found no saddle near."""
         q, sg, res = refine_patches(full, pred[k], int(r), sm, residuals=True)
         moved = np.hypot(*(q - pred[k]).T)
-        ok = (np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
-              & fit_inside(q, int(r), full.shape))
+        near = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
+        ok = near & fit_inside(q, int(r), full.shape)
         # On a circle inside the white margin that keeps the markers away (_x_test).
         kk = np.flatnonzero(k)[ok]
         x, mid, rho, ob = _x_test(board, full, q[ok], size[cand[k]][ok], clear[k][ok], u[kk], v[kk])
@@ -369,6 +371,24 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         win_of[cand[k][ok]] = r
         sm_of[cand[k][ok]] = sm
         res_of[cand[k][ok]] = res[ok]
+        lost = np.zeros(len(cand), dtype=bool)
+        lost[np.flatnonzero(k)[~near]] = True
+        return lost
+
+    # A fit whose smoothing was lessened to keep clear of the markers, and that found no saddle
+    # near its prediction, is tried again at the full smoothing where nothing later finds the
+    # corner (below), and kept where its fit passes as growth's do. Where the white squares
+    # are slivers a few pixels thick (a board seen 70-80 degrees from square on), the lesser
+    # smoothing leaves two thin light lines crossing, no quadratic's saddle near (corpus view
+    # 595, squares of 40 px, margins of 2-3 px: at 1 px none, or one 7 px off; at 1.5 px one
+    # within 0.12 px of the truth). Tried earlier, before growth and step 6, it took corners
+    # that they find nearer the truth (0.02-0.09 px against 0.19-0.50 px).
+    s0 = _FULL_SMOOTHING * factor
+    retry = np.zeros(len(cand), dtype=bool)
+    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
+        lost = fit(r, sm, (win == r) & (smooth == sm))
+        if sm < s0:
+            retry |= lost
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
@@ -389,6 +409,16 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     _grow(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir, res_of)
     _recover_symmetric(board, full, out, sig, noise, {m: found[m][0] for m in confirmed})
+    retry &= ~np.isfinite(out[cand]).all(axis=1)
+    for r in np.unique(win[retry]).tolist():
+        k = retry & (win == r)
+        fit(r, s0, k)
+        c = cand[k]
+        c = c[np.isfinite(out[c]).all(axis=1)]
+        poor = ~typical.passes(sig[c], win_of[c], _SIGMA_RATIO, sm_of[c], chir[c], res_of[c])
+        out[c[poor]] = np.nan
+        sig[c[poor]] = np.nan
+    _from_homographies(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -817,6 +847,11 @@ def _board_shades(grey: np.ndarray, q: np.ndarray, u: np.ndarray, v: np.ndarray,
                             q[:, None, 1] + r * (c * u[:, None, 1] + s * v[:, None, 1]), "bilinear"))
 
 
+#: The saddle fit's smoothing (Gaussian sigma, pixels of the level the markers were read on)
+#: where the markers are far enough from the corner (:func:`_windows`).
+_FULL_SMOOTHING = 1.5
+
+
 def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarray, np.ndarray]:
     """The saddle fit's window and smoothing for corners of squares ``size`` px across lying
     ``clear`` px from their markers (:func:`_clearance`), (K,) each: an eleventh of the size (2
@@ -825,7 +860,7 @@ def _windows(size: np.ndarray, clear: np.ndarray, factor: int) -> tuple[np.ndarr
     board the markers in the acute sectors come near the corner (seed 100 of the corpus,
     noise-free, squares of 50 px: 5-10 px against 15-28 px for the corners of the other
     chirality), and a fit that sees their borders moves 0.2-0.4 px."""
-    s0 = 1.5 * factor
+    s0 = _FULL_SMOOTHING * factor
     r = np.clip(np.minimum(np.round(size / 11.0), np.floor(clear - 2.5 * s0)), 2, 5 * factor).astype(int)
     sm = np.clip(np.floor((clear - r) / 2.5 * 4) / 4, 1.0, s0)
     return r, sm
@@ -1016,3 +1051,63 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
                        others[inside], u[inside], v[inside], win_of, sm_of, res_of, typical)
+
+
+#: A corner is placed from the homography of the found corners around it
+#: (:func:`_from_homographies`) only where that homography misses none of them by more than
+#: this fraction of a square (half a pixel at least): through a lens that bends the board
+#: over four squares, it does not.
+_HOMOGRAPHY_MISFIT = 0.03
+
+
+def _from_homographies(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
+                       sig: np.ndarray, win_of: np.ndarray, sm_of: np.ndarray, res_of: np.ndarray,
+                       typical: TypicalSigma) -> None:
+    """Last, the corners still not found (``out``, NaN) that have six or more found within two
+    rows and columns, not on a line, whose least-squares homography misses none of them by
+    more than :data:`_HOMOGRAPHY_MISFIT` of a square: predicted by it and refined and tested
+    as growth's (:func:`_place_corners`). Growth predicts a corner from a parallelogram of
+    three found neighbours, exact to first order only: on a board seen 76 degrees from square
+    on the squares shrink by a fifth from one to the next, and it put corpus view 598's corner
+    12 4 px off, between light lines crossing 6-8 px apart (squares of 24 px: the fit took the
+    next crossing); the homography of the nine found around put it 0.02 px off. Nothing grows
+    from the corners placed here: a parallelogram from them, a few pixels off on a blurred
+    board, led the fit onto a blur's saddle 7.5 px from a corner (view 390, corner 23)."""
+    nx, ny = board.squares_x - 1, board.squares_y - 1
+    s = board.square
+    cand = np.flatnonzero(~np.isfinite(out).all(axis=1))
+    if not len(cand) or np.isfinite(out).all(axis=1).sum() < 6:
+        return
+    obj = board.object_points()[:, :2]
+    have = np.isfinite(out).all(axis=1)
+    d = np.arange(-2, 3)
+    dx, dy = (a.ravel() for a in np.meshgrid(d, d))
+    keep = (dx != 0) | (dy != 0)
+    dx, dy = dx[keep], dy[keep]
+    X, Y = cand[:, None] % nx + dx, cand[:, None] // nx + dy  # (K, 24)
+    inside = (X >= 0) & (X < nx) & (Y >= 0) & (Y < ny)
+    idx = np.where(inside, Y * nx + X, 0)
+    use = inside & have[idx]
+    count = use.sum(axis=1)
+    # Each corner's place, a square's steps either way along the board's x and y, and its four
+    # neighbours along the rows and columns, through its homography.
+    offsets = np.array([[0.0, 0.0], [0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5],
+                        [1.0, 0.0], [-1.0, 0.0], [0.0, 1.0], [0.0, -1.0]]) * s
+    at = np.full((len(cand), len(offsets), 2), np.nan)
+    miss = np.full(len(cand), np.inf)
+    for c in np.unique(count[count >= 6]):  # one batched fit per number of corners around
+        rows = np.flatnonzero(count == c)
+        nb = np.stack([idx[r][use[r]] for r in rows])  # (R, c)
+        Hs = fit_homographies(obj[nb], out[nb])
+        m = np.hypot(*(apply_homographies(Hs, obj[nb]) - out[nb]).transpose(2, 0, 1)).max(axis=1)
+        miss[rows] = np.where(np.isfinite(m), m, np.inf)
+        at[rows] = apply_homographies(Hs, obj[cand[rows]][:, None] + offsets[None])
+    pred, u, v, others = at[:, 0], at[:, 1] - at[:, 2], at[:, 3] - at[:, 4], at[:, 5:]
+    size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
+    H, W = full.shape
+    edge = 0.35 * size + 2  # the coarse search's window and reach inside the image, as growth's
+    ok = (np.isfinite(at).all(axis=(1, 2)) & (size >= 4) & (miss <= np.maximum(0.5, _HOMOGRAPHY_MISFIT * size))
+          & (pred[:, 0] >= edge) & (pred[:, 0] <= W - 1 - edge) & (pred[:, 1] >= edge) & (pred[:, 1] <= H - 1 - edge))
+    if ok.any():
+        _place_corners(board, full, level, factor, cand[ok], pred[ok], size[ok], out, sig, others[ok], u[ok], v[ok],
+                       win_of, sm_of, res_of, typical)
