@@ -1075,11 +1075,11 @@ def _from_homographies(board: Charuco, full: np.ndarray, level: np.ndarray, fact
     board, led the fit onto a blur's saddle 7.5 px from a corner (view 390, corner 23)."""
     nx, ny = board.squares_x - 1, board.squares_y - 1
     s = board.square
-    cand = np.flatnonzero(~np.isfinite(out).all(axis=1))
-    if not len(cand) or np.isfinite(out).all(axis=1).sum() < 6:
+    have = np.isfinite(out).all(axis=1)
+    cand = np.flatnonzero(~have)
+    if not len(cand) or have.sum() < 6:
         return
     obj = board.object_points()[:, :2]
-    have = np.isfinite(out).all(axis=1)
     d = np.arange(-2, 3)
     dx, dy = (a.ravel() for a in np.meshgrid(d, d))
     keep = (dx != 0) | (dy != 0)
