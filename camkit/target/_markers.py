@@ -67,11 +67,50 @@ def x_shades(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
-                 src: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 src: np.ndarray | None = None, bend: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
     """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
     where a quad holds no code (:func:`read_markers_rims`)."""
-    ids, turns, _ = read_markers_rims(g, quads, d, border, src)
+    ids, turns, _ = read_markers_rims(g, quads, d, border, src, bend=bend)
     return ids, turns
+
+
+def _division(shape: tuple[int, ...]) -> tuple[np.ndarray, float]:
+    """The centre and the unit of radius of :func:`undistort`'s model on an image of ``shape``:
+    the image's middle and half its diagonal."""
+    H, W = shape[:2]
+    return np.array([(W - 1) / 2.0, (H - 1) / 2.0]), 0.5 * float(np.hypot(W, H))
+
+
+def undistort(p: np.ndarray, bend: float, shape: tuple[int, ...]) -> np.ndarray:
+    """Pixels ``p`` (..., 2) of an image of ``shape`` taken through Fitzgibbon's one-parameter
+    division model (CVPR 2001: undistorted = distorted / (1 + bend r^2)), its centre the
+    image's middle and ``r`` in half diagonals: the pixels a lens without distortion (the same
+    scale at the middle) would have put them at. ``bend`` < 0 is barrel (a fisheye's about
+    -1.5), > 0 pincushion; 0 returns ``p``. NaN past the model's reach, where it folds back
+    (``|bend| r^2 >= 1``: a barrel's undistorted radius grows without bound there, a
+    pincushion's turns back)."""
+    p = np.asarray(p, dtype=np.float64)
+    if not bend:
+        return p
+    c, R = _division(shape)
+    d = (p - c) / R
+    r2 = (d ** 2).sum(axis=-1, keepdims=True)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return c + R * d / np.where(abs(bend) * r2 < 1.0, 1.0 + bend * r2, np.nan)
+
+
+def distort(u: np.ndarray, bend: float, shape: tuple[int, ...]) -> np.ndarray:
+    """:func:`undistort`'s inverse: the pixels of undistorted pixels ``u`` (..., 2). The
+    distorted radius solves ``bend r_u r^2 - r + r_u = 0``: ``r = 2 r_u / (1 + sqrt(1 - 4 bend
+    r_u^2))`` (NaN beyond the model's reach)."""
+    u = np.asarray(u, dtype=np.float64)
+    if not bend:
+        return u
+    c, R = _division(shape)
+    d = (u - c) / R
+    with np.errstate(invalid="ignore"):
+        f = 2.0 / (1.0 + np.sqrt(1.0 - 4.0 * bend * (d ** 2).sum(axis=-1, keepdims=True)))
+    return c + R * d * f
 
 
 #: A quad that reads as no code is read again with its corners refined where its border is
@@ -82,8 +121,8 @@ _RIM_TO_REFINE = 0.6
 
 
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
-                      src: np.ndarray | None = None,
-                      rim_contrast: float = 0.15) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      src: np.ndarray | None = None, rim_contrast: float = 0.15,
+                      bend: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
     (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All
@@ -91,11 +130,13 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     middle points and of the white margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
     lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
-    corners."""
+    corners. ``bend``: where not 0, the markers are read through a lens of that strength
+    (:func:`undistort`: a marker's cells lie on the homography of its undistorted corners)."""
     K = len(quads)
     n = d.marker_size + 2 * border
     unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
-    Hs = fit_homographies(np.broadcast_to(unit, quads.shape) if src is None else src, quads)
+    Hs = fit_homographies(np.broadcast_to(unit, quads.shape) if src is None else src,
+                          undistort(quads, bend, g.shape))
     ok = np.isfinite(Hs).all(axis=(1, 2))
     Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
     ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
@@ -107,6 +148,11 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
     with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate quad's rows: not read below
         px = p[:, :, :2] / p[:, :, 2:]
+    if bend:
+        px = distort(px, bend, g.shape)
+        reach = np.isfinite(px).all(axis=(1, 2))
+        ok &= reach
+        px[~reach] = 0.0
     vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
                    "bilinear").reshape(K, len(pts))
     cell = vals[:, :n * n * 9].reshape(K, n, n, 9).mean(axis=3)
@@ -278,16 +324,23 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
                                 else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
         if corner_squares > 0 and (codes < 0).any():
             quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
+        bent = np.zeros(len(codes), dtype=bool)
+        if corner_squares > 0 and (codes < 0).any():
+            codes, turns, bent = _read_bent(g, quads, codes, turns, d, border)
         if corner_squares == 0 and ((codes < 0) & rimmed).any():
             quads, codes, turns = _read_refined(g, quads, codes, turns, rimmed, d, border)
         # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
         # lie up to a cell off where blur widens or narrows it).
-        read = codes >= 0
+        # (Not those read through a lens: their sides bow, and lines through them miss the corners.)
+        read = (codes >= 0) & ~bent
         if read.any():
             quads = quads.copy()
             quads[read] = refine_quads(g, quads[read], n_cells)
         level: dict[int, list[np.ndarray]] = {}
-        for quad, code, k in zip(quads, codes, turns, strict=True):  # one entry per decoded quad
+        # One entry per decoded quad; those read straight first (a marker read both ways keeps
+        # its refined corners).
+        for j in np.argsort(bent, kind="stable"):
+            quad, code, k = quads[j], codes[j], turns[j]
             if code < 0:
                 continue
             # The code's corner j is the quad's corner (j - turns) % 4.
@@ -427,6 +480,31 @@ def _read_swollen(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np
     return quads, codes, turns
 
 
+#: The lens strengths (:func:`undistort`'s ``bend``) a quad that reads as no code is read
+#: through, weakest first: a fisheye's is about -1.5 (AprilGrid corpus view 28, every tag
+#: within 0.07 of a cell of its cells there), and a tag reads within about 0.5 of it.
+BENDS = (-0.5, 0.5, -1.0, -1.5, -2.0, -2.5, -3.0)
+
+
+def _read_bent(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, d: ArucoDictionary,
+               border: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The quads that read as no code read again through lenses of the strengths
+    :data:`BENDS` (:func:`read_markers`' ``bend``), the first that reads kept: through a
+    fisheye a tag's sides bow by up to 1.7 of its cells, and the homography through its
+    corners puts its middle cells a cell or more off (AprilGrid corpus view 28: 5 of 42 tags
+    read so). Returns the codes, turns and which were read so."""
+    codes, turns = codes.copy(), turns.copy()
+    bent = np.zeros(len(codes), dtype=bool)
+    for bend in BENDS:
+        fail = np.flatnonzero(codes < 0)
+        if not len(fail):
+            break
+        ids, tn = read_markers(g, quads[fail], d, border, bend=bend)
+        codes[fail], turns[fail] = ids, tn
+        bent[fail[ids >= 0]] = True
+    return codes, turns, bent
+
+
 def unconfirmed_reason(found: dict[int, list[np.ndarray]], n_markers: int, noun: str, whole: str) -> str:
     """Why nothing was confirmed, in words: no ``noun`` of the ``whole`` read, or how many were
     read and not confirmed by a neighbour."""
@@ -461,7 +539,8 @@ def narrowest_width(q: np.ndarray) -> np.ndarray:
 
 
 def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.ndarray, step: float,
-                    factor: int) -> tuple[list[int], dict[int, np.ndarray], dict[int, float]]:
+                    factor: int, bend: float = 0.0,
+                    shape: tuple[int, ...] = (0, 0)) -> tuple[list[int], dict[int, np.ndarray], dict[int, float]]:
     """The board's markers among ``found`` (:func:`find_markers`) that a neighbour confirms.
 
     ``obj`` (M, 4, 2): each of the board's markers' corners in the target frame, in the code's
@@ -473,8 +552,14 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
     are smooth over two places); a marker is confirmed by at least one pair that fits and more
     that fit than do not.
 
+    ``bend`` (with the image's ``shape``): the corners are taken through :func:`undistort`
+    first (a fisheye bends two tags' corners off one homography by more than that); the
+    homographies returned are then to undistorted pixels.
+
     Returns (confirmed ids, each confirmed marker's homography target frame -> image, each
     marker's pitch in pixels)."""
+    if bend:
+        found = {m: [undistort(q, bend, shape) for q in c] for m, c in found.items()}
     ids = [m for m, c in found.items() if m < len(obj) and len(c) == 1]
     homs: dict[int, np.ndarray] = {}
     if ids:
@@ -729,19 +814,22 @@ def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.n
 
 
 def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarray],
-                    misfit: dict[int, float] | None = None) -> dict[int, np.ndarray]:
+                    misfit: dict[int, float] | None = None, bend: float = 0.0,
+                    shape: tuple[int, ...] = (0, 0)) -> dict[int, np.ndarray]:
     """Where each of the board's markers should be, from its neighbours: for every marker with
     one or more markers of ``quads`` (id -> (4, 2) image corners) within one place of it on the
     layout ``grid`` (itself left out), its corners ``obj`` (M, 4, 2) through the least-squares
     homography of those neighbours' corners. One fit per marker, batched by neighbour count.
-    ``misfit``, where given, is filled with each fit's largest miss of those corners (px)."""
+    ``misfit``, where given, is filled with each fit's largest miss of those corners (px).
+    ``bend`` (with the image's ``shape``): fitted on the corners through :func:`undistort`,
+    the places taken back through :func:`distort` (misses in undistorted pixels)."""
     have = np.array(sorted(quads), dtype=np.int64)
     if not len(have):
         return {}
     near = (np.abs(grid[:, None, :] - grid[None, have, :]).max(axis=2) <= 1) & (np.arange(len(grid))[:, None]
                                                                                != have[None, :])
     count = near.sum(axis=1)
-    img = np.stack([quads[m] for m in have])
+    img = undistort(np.stack([quads[m] for m in have]), bend, shape)
     out: dict[int, np.ndarray] = {}
     for c in np.unique(count[count > 0]):  # one batched fit per neighbour count
         ms = np.flatnonzero(count == c)
@@ -750,7 +838,7 @@ def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarr
         src = obj[nb].reshape(len(ms), 4 * c, 2)
         dst = img[idx].reshape(len(ms), 4 * c, 2)
         Hs = fit_homographies(src, dst)
-        pred = apply_homographies(Hs, obj[ms])
+        pred = distort(apply_homographies(Hs, obj[ms]), bend, shape)
         miss = np.hypot(*(apply_homographies(Hs, src) - dst).transpose(2, 0, 1)).max(axis=1)
         for m, q, e in zip(ms, pred, miss, strict=True):
             if np.isfinite(q).all():
@@ -761,25 +849,27 @@ def neighbour_quads(obj: np.ndarray, grid: np.ndarray, quads: dict[int, np.ndarr
 
 
 def recover_markers(grey: np.ndarray, d: ArucoDictionary, border: int, obj: np.ndarray, grid: np.ndarray,
-                    quads: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+                    quads: dict[int, np.ndarray], bend: float = 0.0) -> dict[int, np.ndarray]:
     """The board's markers ``quads`` (id -> confirmed (4, 2) corners, full-image pixels) and
     those the neighbours find: a marker not among them (its quad not found, or merged with
     something beside it) is read where its neighbours put it (:func:`neighbour_quads`), or
     where that does not read, with those corners refined to its sides' edges
     (:func:`refine_quads`), and kept where it reads as its own id the right way up. Rounds
-    until none is added, so that a row of markers is recovered from one side."""
+    until none is added, so that a row of markers is recovered from one side. ``bend``: the
+    lens's (:func:`undistort`), for the neighbours' homography and the reading."""
     quads = dict(quads)
     H, W = grey.shape
     tried: set[int] = set()
     while True:
-        pred = {m: q for m, q in neighbour_quads(obj, grid, quads).items() if m not in quads and m not in tried}
+        pred = {m: q for m, q in neighbour_quads(obj, grid, quads, bend=bend, shape=grey.shape).items()
+                if m not in quads and m not in tried}
         inside = [m for m, q in pred.items()
                   if (q >= 1).all() and (q[:, 0] <= W - 2).all() and (q[:, 1] <= H - 2).all()]
         if not inside:
             return quads
         tried.update(inside)
         q = np.stack([pred[m] for m in inside])
-        ids, turns = read_markers(grey, q, d, border)
+        ids, turns = read_markers(grey, q, d, border, bend=bend)
         # Through a wide lens the neighbours' homography puts a marker at the board's edge a
         # cell or more off: a quad that does not read is read again with its corners where its
         # sides' edges meet (corpus view 878: markers 5 and 11, 8-13 px across at 69 degrees).

@@ -27,9 +27,13 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 
 1. dark quads of an adaptive threshold, opened by a 3 x 3 cross (a tag touches its corner
    squares at a point); a quad that reads as no code is read again as a tag with corner
-   squares joined at some of its corners (a blurred junction joins them);
+   squares joined at some of its corners (a blurred junction joins them), then through a
+   lens (Fitzgibbon's division model about the image's middle, at a few strengths: through a
+   fisheye a tag's sides bow and the homography of its corners misses its middle cells);
 2. the cells read against the family with its error correction, ids checked against the grid
-   and confirmed by a neighbour (one homography through both tags' corners);
+   and confirmed by a neighbour (one homography through both tags' corners, undistorted by
+   the strength under which the most tags are confirmed; the neighbours' homographies that
+   follow, and the reading of tags through them, use it too);
 3. a confirmed tag's corner that the other tags' corners put a third of a corner square or
    more away is taken from them, where that is a joined corner square's signature (the
    corner outwards along the tag's diagonal by about a square, on a local map of the corners
@@ -67,6 +71,7 @@ import numpy as np
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._markers import (
+    BENDS,
     TypicalSigma,
     apart_from_found,
     confirm_markers,
@@ -236,14 +241,21 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     found, factor, _ = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
     obj = grid.tag_corners()
     places = grid.tag_places()
-    confirmed, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor)
+    # The lens: the strength (:func:`~camkit.target._markers.undistort`) under which the most
+    # tags are confirmed, the weakest of those (a fisheye's tags off one homography by more
+    # than the test allows, two by two).
+    confirmed, bend = [], 0.0
+    for b in (0.0, *BENDS):
+        c, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor, b, full.shape)
+        if len(c) > len(confirmed):
+            confirmed, bend = c, b
     if not confirmed:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
                                       f"({grid.family})")
     quads = {m: found[m][0] for m in confirmed}
-    quads = _unjoined(grid, quads, factor)
+    quads = _unjoined(grid, quads, factor, bend, full.shape)
     # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
-    quads = recover_markers(full, grid.aruco, BORDER_BITS, obj, places, quads)
+    quads = recover_markers(full, grid.aruco, BORDER_BITS, obj, places, quads, bend)
     tags = sorted(quads)
     ids = grid.tag_point_ids()[tags].ravel()
     pred = np.concatenate([quads[m] for m in tags])
@@ -290,7 +302,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     if got.any():
         t_arr = np.asarray(tags)
         k = np.flatnonzero(got)
-        codes, turns = read_markers(full, at[k], grid.aruco, BORDER_BITS)
+        codes, turns = read_markers(full, at[k], grid.aruco, BORDER_BITS, bend=bend)
         drop = tid[k[(codes != t_arr[k]) | (turns != 0)]].ravel()
         out[drop] = np.nan
         sig[drop] = np.nan
@@ -317,7 +329,8 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
                      f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
 
 
-def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dict[int, np.ndarray]:
+def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: float = 0.0,
+              shape: tuple[int, ...] = (0, 0)) -> dict[int, np.ndarray]:
     """The confirmed tags' quads (id -> (4, 2) image corners) with each corner that the other
     tags' corners put a third of a corner square or more away (2 px at the level read at
     least) taken from them: a tag's dark region joined to a corner square puts that corner
@@ -350,7 +363,7 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int) -> dic
     # The homography of the tags beside it, where it fits them (or too few corners are
     # around for a local map).
     miss: dict[int, float] = {}
-    nbr = neighbour_quads(grid.tag_corners(), grid.tag_places(), quads, miss)
+    nbr = neighbour_quads(grid.tag_corners(), grid.tag_places(), quads, miss, bend, shape)
     fallback = np.concatenate([nbr.get(int(m), np.full((4, 2), np.nan)) for m in tags])
     fits = np.repeat([miss.get(int(m), np.inf) <= 0.5 * t for m, t in zip(tags, tol[::4], strict=True)], 4)
     off = np.zeros(len(obj), dtype=bool)

@@ -7,6 +7,7 @@ import cv2
 import numpy as np
 
 from camkit.target._homography import apply_homographies, fit_homographies
+from camkit.target._markers import distort, undistort
 from camkit.target.checkerboard import _to_grey
 
 
@@ -239,3 +240,21 @@ def test_the_noise_sigma_is_the_scatter_white_noise_gives_the_saddle_fit():
     assert s[0] > 3 * err, (s[0], err)
     held = noise_sigma(s, rr, 2, 1.0, image_noise(g))
     assert held[0] < 0.1 * s[0], (held, s)
+
+
+def test_the_division_model_undoes_itself_and_is_fitzgibbons():
+    """:func:`undistort` is Fitzgibbon's one-parameter division model (CVPR 2001, eq. 3:
+    undistorted = distorted / (1 + lambda r^2)) about the image's middle, r in half diagonals;
+    :func:`distort` is its inverse, for barrel and pincushion strengths."""
+    shape = (480, 640)  # half diagonal 400 px, middle (319.5, 239.5)
+    p = np.array([[319.5 + 200.0, 239.5], [319.5, 239.5], [0.0, 0.0], [639.0, 479.0]])
+    # A point half a half-diagonal out: r = 0.5, so bend -1 puts it at 0.5 / 0.75 = 2/3.
+    np.testing.assert_allclose(undistort(p[:1], -1.0, shape), [[319.5 + 400.0 * 2.0 / 3.0, 239.5]])
+    np.testing.assert_allclose(undistort(p, 0.0, shape), p)
+    for bend in (-0.9, -0.3, 0.4, 0.9):
+        np.testing.assert_allclose(distort(undistort(p, bend, shape), bend, shape), p, atol=1e-9)
+    # Past either model's reach (|bend| r^2 >= 1, where it folds back): NaN, not a wrong pixel.
+    for bend in (-2.5, 2.0):
+        assert np.isnan(undistort(p[2:], bend, shape)).all()
+        np.testing.assert_allclose(distort(undistort(p[:2], bend, shape), bend, shape), p[:2], atol=1e-9)
+    assert np.isnan(distort(np.array([[319.5 + 4000.0, 239.5]]), 0.5, shape)).all()
