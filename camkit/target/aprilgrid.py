@@ -26,7 +26,9 @@ families).
 Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.target._markers`):
 
 1. dark quads of an adaptive threshold, opened by a 3 x 3 cross (a tag touches its corner
-   squares at a point); a quad that reads as no code is read again as a tag with corner
+   squares at a point) and cut along the light sectors of every X-junction (seen aslant and
+   blurred, a junction's light sectors are thin wedges whose middle is dark, and tags join
+   their corner squares into chains there); a quad that reads as no code is read again as a tag with corner
    squares joined at some of its corners (a blurred junction joins them), then through a
    lens (Fitzgibbon's division model about the image's middle, at a few strengths: through a
    fisheye a tag's sides bow and the homography of its corners misses its middle cells);
