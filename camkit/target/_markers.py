@@ -267,7 +267,7 @@ MIN_CELL_PX = 1.25
 
 
 #: How far either way of an X-junction (px) :func:`_junction_cuts` cuts along its light sectors.
-_CUT_REACH = 1.5
+_CUT_REACH = 3.0
 
 
 def _junction_cuts(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -796,37 +796,25 @@ def _local_fits(rel: np.ndarray, near: np.ndarray, wide: np.ndarray, pts: np.nda
 
 
 def predict_points(obj: np.ndarray, pts: np.ndarray, query: np.ndarray, radius: float,
-                   usable: np.ndarray | None = None, bend: float = 0.0,
-                   shape: tuple[int, ...] = (0, 0)) -> np.ndarray:
+                   usable: np.ndarray | None = None) -> np.ndarray:
     """Image places of the target-frame points ``query`` (K, 2) from the found points (``obj``
     (N, 2), ``pts`` (N, 2)) around each (:func:`_local_fits`), those of ``usable`` (K, N) only
-    where given; NaN where too few are near. ``bend`` (with the image's ``shape``): the maps
-    fitted on the points through :func:`undistort`, their places taken back through
-    :func:`distort` (as they are where a point lies past the model's reach)."""
+    where given; NaN where too few are near."""
     rel = (obj[None, :, :] - query[:, None, :]) / radius
     reach = np.abs(rel).max(axis=2)
-    flat = undistort(pts, bend, shape)
-    if not np.isfinite(flat).all():
-        flat, bend = pts, 0.0
     if usable is None:
-        return distort(_local_fits(rel, reach <= 1.0, reach <= 1.6, flat), bend, shape)
-    return distort(_local_fits(rel, (reach <= 1.0) & usable, (reach <= 1.6) & usable, flat), bend, shape)
+        return _local_fits(rel, reach <= 1.0, reach <= 1.6, pts)
+    return _local_fits(rel, (reach <= 1.0) & usable, (reach <= 1.6) & usable, pts)
 
 
-def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.ndarray, bend: float = 0.0,
-                      shape: tuple[int, ...] = (0, 0)) -> np.ndarray:
+def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.ndarray) -> np.ndarray:
     """Which of the found points (target-frame ``obj`` (N, 2), image ``pts`` (N, 2)) agree with
     their neighbours: each against the map fitted on the others around it (:func:`_local_fits`:
     a quadratic on those within ``radius`` in the target frame, or within ``1.6 radius``; an
     affine map from four to seven), missing it by at most ``tol`` (N,) pixels. The worst
     offender in its own neighbourhood goes first, round by round, so that one wrong point does
     not condemn its neighbours; a point with fewer than four neighbours cannot be checked and
-    goes. Two points at one place (one X-junction given two labels) both go. ``bend`` (with
-    the image's ``shape``): a point that misses the map may instead meet the map fitted on
-    the points through :func:`undistort`, its prediction taken back through :func:`distort`
-    (the misses stay in pixels). Through a fisheye the first misses true corners (corpus
-    view 154: 8 of 80); the second alone missed 16 of 120 true corners where the model
-    stretches the image's rim (view 893)."""
+    goes. Two points at one place (one X-junction given two labels) both go."""
     n = len(obj)
     keep = np.ones(n, dtype=bool)
     if n == 0:
@@ -836,9 +824,6 @@ def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.n
     keep &= d.min(axis=1) > 0.5 * tol
     rel = (obj[None, :, :] - obj[:, None, :]) / radius  # (k, j, 2): j seen from k
     reach = np.abs(rel).max(axis=2)
-    flat = undistort(pts, bend, shape)
-    if not np.isfinite(flat).all():  # a point past the lens model's reach: fitted as it is
-        flat, bend = pts, 0.0
     own = np.eye(n, dtype=bool)
     near = (reach <= 1.0) & ~own
     wide = (reach <= 1.6) & ~own
@@ -847,9 +832,6 @@ def consistent_points(obj: np.ndarray, pts: np.ndarray, radius: float, tol: np.n
         k = np.flatnonzero(keep)
         pred = _local_fits(rel[k], near[k] & keep[None, :], wide[k] & keep[None, :], pts)
         res[k] = np.hypot(*(pred - pts[k]).T)
-        if bend:
-            pred = distort(_local_fits(rel[k], near[k] & keep[None, :], wide[k] & keep[None, :], flat), bend, shape)
-            res[k] = np.fmin(res[k], np.hypot(*(pred - pts[k]).T))
         bad = keep & ~(res <= tol)
         if not bad.any():
             break

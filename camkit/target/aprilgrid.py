@@ -34,9 +34,8 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    fisheye a tag's sides bow and the homography of its corners misses its middle cells);
 2. the cells read against the family with its error correction, ids checked against the grid
    and confirmed by a neighbour (one homography through both tags' corners, undistorted by
-   the lens's strength: of those that confirm the most tags, within a tenth, the one under
-   which the tags lie best on their neighbours' homographies; the neighbours' homographies
-   and local maps that follow, and the reading of tags through them, use it too);
+   the strength under which the most tags are confirmed; the neighbours' homographies that
+   follow, and the reading of tags through them, use it too);
 3. a confirmed tag's corner that the other tags' corners put a third of a corner square or
    more away is taken from them, where that is a joined corner square's signature (the
    corner outwards along the tag's diagonal by about a square, on a local map of the corners
@@ -61,7 +60,7 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    (a corner at another junction or in a corner square turns its cells) loses its corners;
 6. every corner is checked against a quadratic map of its neighbours within 1.6 pitches (6 %
    of its tag, or of the grid's median tag where larger; a fisheye's bend over that reach is
-   under 4.5 %), or that map fitted through the lens, worst first.
+   under 4.5 %), worst first.
 """
 
 from __future__ import annotations
@@ -93,7 +92,6 @@ from camkit.target._markers import (
     recover_markers,
     refine_patches,
     unconfirmed_reason,
-    undistort,
 )
 from camkit.target.aruco import ArucoDictionary, get_dictionary
 from camkit.target.base import Detection, Sheet, Target, register_target
@@ -245,18 +243,14 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     found, factor, _ = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
     obj = grid.tag_corners()
     places = grid.tag_places()
-    # The lens (:func:`~camkit.target._markers.undistort`'s strength): of those under which
-    # the most tags are confirmed, within a tenth (a fisheye's tags are off one homography by
-    # more than the test allows, two by two), the one under which the tags lie best on their
-    # neighbours' homographies (:func:`_lens_strength`). One more tag confirmed is no
-    # evidence of a lens (corpus view 803, barrel: 35 tags under -1.0, 34 under 0, where the
-    # tags miss their neighbours' homographies three times as much).
-    tried = {b: confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor, b, full.shape)[0]
-             for b in (0.0, *BENDS)}
-    top = max(len(c) for c in tried.values())
-    near_top = [b for b, c in tried.items() if c and len(c) >= top - max(1, top // 10)]
-    bend = _lens_strength(grid, found, near_top, full.shape) if len(near_top) > 1 else (near_top or [0.0])[0]
-    confirmed = tried[bend]
+    # The lens: the strength (:func:`~camkit.target._markers.undistort`) under which the most
+    # tags are confirmed, the weakest of those (a fisheye's tags off one homography by more
+    # than the test allows, two by two).
+    confirmed, bend = [], 0.0
+    for b in (0.0, *BENDS):
+        c, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor, b, full.shape)
+        if len(c) > len(confirmed):
+            confirmed, bend = c, b
     if not confirmed:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
                                       f"({grid.family})")
@@ -289,7 +283,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         again = ids[~seen[ids]]
         if not len(again) or not seen.any():
             break
-        p2 = predict_points(obj2[seen], out[seen], obj2[again], grid.pitch, bend=bend, shape=full.shape)
+        p2 = predict_points(obj2[seen], out[seen], obj2[again], grid.pitch)
         ok = np.isfinite(p2).all(axis=1)
         if not ok.any():
             break
@@ -325,7 +319,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     own, overall = _tag_px(grid, out)
     own = own[seen]
     tol = np.maximum(0.6 * factor, np.minimum(0.06 * np.maximum(own, overall), 0.4 * grid.tag_spacing * own))
-    ok = consistent_points(obj2[seen], out[seen], 1.6 * grid.pitch, tol, bend, full.shape)
+    ok = consistent_points(obj2[seen], out[seen], 1.6 * grid.pitch, tol)
     out[seen[~ok]] = np.nan
     sig[seen[~ok]] = np.nan
     n_found = int(np.isfinite(out).all(axis=1).sum())
@@ -335,27 +329,6 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
-
-
-def _lens_strength(grid: AprilGrid, found: dict[int, list[np.ndarray]], bends: list[float],
-                   shape: tuple[int, ...]) -> float:
-    """Of ``bends`` (:func:`~camkit.target._markers.undistort`'s strengths), the one under which
-    the tags read once (``found``) lie best on the homography of the tags beside them (the
-    median of each one's largest miss over its side, both undistorted)."""
-    quads = {m: c[0] for m, c in found.items() if m < grid.n_tags and len(c) == 1}
-    best, score = bends[0], np.inf
-    for b in bends:
-        miss: dict[int, float] = {}
-        neighbour_quads(grid.tag_corners(), grid.tag_places(), quads, miss, b, shape)
-        have = [m for m in miss if m in quads]
-        if not have:
-            continue
-        side = np.sqrt(np.abs(quad_area(undistort(np.stack([quads[m] for m in have]), b, shape))))
-        r = np.array([miss[m] for m in have]) / side
-        r = r[np.isfinite(r)]
-        if len(r) and np.median(r) < score:
-            best, score = b, float(np.median(r))
-    return best
 
 
 def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: float = 0.0,
@@ -397,7 +370,7 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: 
     fits = np.repeat([miss.get(int(m), np.inf) <= 0.5 * t for m, t in zip(tags, tol[::4], strict=True)], 4)
     off = np.zeros(len(obj), dtype=bool)
     for _ in range(2):
-        pred = predict_points(obj, pts, obj, grid.pitch, usable=other & ~off[None, :], bend=bend, shape=shape)
+        pred = predict_points(obj, pts, obj, grid.pitch, usable=other & ~off[None, :])
         local = np.isfinite(pred).all(axis=1) & ~fits
         pred[~local] = fallback[~local]
         d = pts - pred
