@@ -318,10 +318,12 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     border is a marker's (:func:`_rims`); without ``corner_squares``, a quad with a marker's
     border (three times the level's noise darker than its margin) that reads as no code is
     read again with its corners refined (:func:`_read_refined`). ``corner_squares`` (an
-    AprilGrid's spacing, over the marker's side): a quad that reads as nothing is read again
-    as a marker with such squares joined at some of its corners (a blurred junction joins
-    their dark regions), and kept with the marker's own corners.
-    ``noise``: the image's (:func:`image_noise`), where already measured.
+    AprilGrid's spacing, over the marker's side): the dark masks are cut at the X-junctions
+    (:func:`_junction_cuts`); a quad that reads as nothing is read again as a marker with such
+    squares joined at some of its corners (a blurred junction joins their dark regions), and
+    kept with the marker's own corners; one that still reads as nothing is read through a
+    lens (:func:`_read_bent`), and kept with its corners as found (not refined to straight
+    edges). ``noise``: the image's (:func:`image_noise`), where already measured.
     """
     levels = [(full, 1)]
     while max(levels[-1][0].shape) > MARKER_LEVEL_SIDE:

@@ -28,14 +28,15 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 1. dark quads of an adaptive threshold, opened by a 3 x 3 cross (a tag touches its corner
    squares at a point) and cut along the light sectors of every X-junction (seen aslant and
    blurred, a junction's light sectors are thin wedges whose middle is dark, and tags join
-   their corner squares into chains there); a quad that reads as no code is read again as a tag with corner
-   squares joined at some of its corners (a blurred junction joins them), then through a
-   lens (Fitzgibbon's division model about the image's middle, at a few strengths: through a
-   fisheye a tag's sides bow and the homography of its corners misses its middle cells);
+   their corner squares into chains there); a quad that reads as no code is read again as a
+   tag with corner squares joined at some of its corners (a blurred junction joins them),
+   then through a lens (Fitzgibbon's division model about the image's middle, at a few
+   strengths: through a fisheye a tag's sides bow and the homography of its corners misses
+   its middle cells);
 2. the cells read against the family with its error correction, ids checked against the grid
    and confirmed by a neighbour (one homography through both tags' corners, undistorted by
-   the strength under which the most tags are confirmed; the neighbours' homographies that
-   follow, and the reading of tags through them, use it too);
+   the weakest strength under which the most tags are confirmed; the neighbours'
+   homographies that follow, and the reading of tags through them, use it too);
 3. a confirmed tag's corner that the other tags' corners put a third of a corner square or
    more away is taken from them, where that is a joined corner square's signature (the
    corner outwards along the tag's diagonal by about a square, on a local map of the corners
