@@ -89,7 +89,10 @@ def undistort(p: np.ndarray, bend: float, shape: tuple[int, ...]) -> np.ndarray:
     scale at the middle) would have put them at. ``bend`` < 0 is barrel (a fisheye's about
     -1.5), > 0 pincushion; 0 returns ``p``. NaN past the model's reach, where it folds back
     (``|bend| r^2 >= 1``: a barrel's undistorted radius grows without bound there, a
-    pincushion's turns back)."""
+    pincushion's turns back). The checkerboard's ``_LensMap`` fits the same model with a free
+    centre and a second term; it is not shared: that one is fitted by least squares and
+    clamps at the fold, this one reads at set strengths about a fixed centre and refuses
+    what lies past it."""
     p = np.asarray(p, dtype=np.float64)
     if not bend:
         return p
