@@ -40,15 +40,16 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 3. a confirmed tag's corner that the other tags' corners put a third of a corner square or
    more away is taken from them, where that is a joined corner square's signature (the
    corner outwards along the tag's diagonal by about a square, on a local map of the corners
-   around) or the tags around fit one homography; tags not read are read where their
-   neighbours put them;
+   around or, where the tags around fit one homography, on that); tags not read are read
+   where their neighbours put them;
 4. each corner at its saddle point (camkit's sub-pixel estimator; the X-junction's circle
    and the fit's reach scaled by the tag's shortest side, the window and its smoothing by
    how narrow the tag is, its area over its longer sides: a tilted tag's border and corner
    squares are narrow across the tilt, and a sheared one is narrower than its shortest
    side), with its sigma; a fit that does not converge, whose window does not fit inside the
    image, moves more than 0.45 of a corner square (the next junction is a square away) or is
-   not an X-junction is dropped, and tried again from the corners found around it; then the
+   not an X-junction is dropped, and tried again from the corners found around it (held to
+   the grown points' sigma test below: no code vouches for such a corner); then the
    points of tags not read (too small, blurred, or bent by a lens past reading through their
    four corners) are reached from those found, junction by junction (completing a rectangle
    of three found points, else continuing a row or column), each kept within a quarter of a
@@ -279,6 +280,8 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # Corners whose quad put them too far off to converge: again, from the corners found
     # around them (a quadratic map of the grid within a pitch).
     obj2 = grid.object_points()[:, :2]
+    retried = np.zeros(N, dtype=bool)
+    res_retried = np.full(N, np.nan)  # their fits' residuals (TypicalSigma.passes)
     for _ in range(2):
         seen = np.isfinite(out).all(axis=1)
         again = ids[~seen[ids]]
@@ -288,11 +291,22 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         ok = np.isfinite(p2).all(axis=1)
         if not ok.any():
             break
-        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig, win_of)
-    # Corners of tags not read (too small, blurred, or bent by the lens past reading through
-    # their four corners), reached from the corners found, junction by junction.
+        _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig, win_of,
+                res_retried)
+        retried |= np.isfinite(out).all(axis=1) & ~seen
     # A fit's sigma is judged against the tags' corners refitted with its own window.
     typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor))
+    # The corners retried are held to the grown corners' test (no code vouches for them: the
+    # fit at their tag's corner failed): where the fit took a blur's saddle beside the
+    # junction, its sigma was 0.14-0.9 px (19 of 20 such fits), and under 0.12 px for 123 of
+    # the 126 at the junction (AprilGrid corpus, 150 views of 0-299).
+    r = np.flatnonzero(retried)
+    if len(r):
+        poor = r[~typical.passes(sig[r], win_of[r], 1.5, res=res_retried[r], cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)]
+        out[poor] = np.nan
+        sig[poor] = np.nan
+    # Corners of tags not read (too small, blurred, or bent by the lens past reading through
+    # their four corners), reached from the corners found, junction by junction.
     res_of = np.full(N, np.nan)  # the grown points' fits' residuals (TypicalSigma.passes)
     _grow(grid, full, out, sig, factor, win_of, res_of, typical)
     drop_poor_fits(out, sig, typical, win_of, res=res_of)
@@ -345,10 +359,12 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: 
     tags beside it fit one homography (missing their corners by at most half the tolerance;
     a single tag beside it fits one exactly, so there it is used as before) or too few
     corners are around for that map, the prediction is that homography
-    (:func:`~camkit.target._markers.neighbour_quads`), taken wherever it is that far off.
-    That homography alone was used before: through a fisheye it put corners 5-18 px off and
+    (:func:`~camkit.target._markers.neighbour_quads`), held to the same signature. That
+    homography alone was used before: through a fisheye it put corners 5-18 px off and
     replaced corners found within 2 px (AprilGrid corpus view 133: 79 of 168 corners
-    lost)."""
+    lost). Taken wherever it was that far off, it replaced exact corners by 16-54 px where
+    the one tag beside them had been read with a corner square joined (corpus view 1063:
+    tags 4, 5 and 14, then 33 of 140 corners lost to the reading again)."""
     tags = np.array(sorted(quads), dtype=np.int64)
     if len(tags) < 2:
         return quads
@@ -378,7 +394,7 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: 
         along = np.einsum("ij,ij->i", d, u)
         across = np.abs(d[:, 0] * u[:, 1] - d[:, 1] * u[:, 0])
         with np.errstate(invalid="ignore"):
-            off = (np.hypot(*d.T) > tol) & (~local | ((along >= 0.5 * b) & (along <= 2.0 * b) & (across <= 0.5 * b)))
+            off = (np.hypot(*d.T) > tol) & (along >= 0.5 * b) & (along <= 2.0 * b) & (across <= 0.5 * b)  # signature
     moved = off.reshape(-1, 4).any(axis=1)
     new = np.where(off[:, None], pred, pts).reshape(-1, 4, 2)
     return {**quads, **{int(m): new[i] for i, m in enumerate(tags) if moved[i]}}
