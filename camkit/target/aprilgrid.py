@@ -302,7 +302,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # the 126 at the junction (AprilGrid corpus, 150 views of 0-299).
     r = np.flatnonzero(retried)
     if len(r):
-        poor = r[~typical.passes(sig[r], win_of[r], 1.5, res=res_retried[r], cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)]
+        poor = r[~_unvouched_fit_passes(typical, sig[r], win_of[r], res_retried[r])]
         out[poor] = np.nan
         sig[poor] = np.nan
     # Corners of tags not read (too small, blurred, or bent by the lens past reading through
@@ -470,6 +470,15 @@ _GROWN_REACH = 0.25
 _MAX_GROWN_LOW_CONTRAST_SIGMA = 0.1
 
 
+def _unvouched_fit_passes(typical: TypicalSigma, sig: np.ndarray, win: np.ndarray, res: np.ndarray) -> np.ndarray:
+    """Which saddle fits that no tag's code vouches for (points grown past the tags, corners
+    tried again from their neighbours) are kept: sigma ``sig`` at most 1.5 times
+    ``typical``'s for the window ``win``, or residuals ``res`` at most that times the typical
+    ones with a sigma of at most :data:`_MAX_GROWN_LOW_CONTRAST_SIGMA`
+    (:meth:`~camkit.target._markers.TypicalSigma.passes`)."""
+    return typical.passes(sig, win, 1.5, res=res, cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)
+
+
 def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int,
           win_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the grid's points next to found ones (``out``, NaN where not found), round by round:
@@ -506,8 +515,7 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
-        got[got] = typical.passes(tsig[cand[got]], twin[cand[got]], 1.5,  # no code vouches for it
-                                  res=tres[cand[got]], cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)
+        got[got] = _unvouched_fit_passes(typical, tsig[cand[got]], twin[cand[got]], tres[cand[got]])
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
         win_of[cand[got]] = twin[cand[got]]
