@@ -501,7 +501,8 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     keep = np.flatnonzero(seen)[ok]
     # The check of step 4 again, at full resolution (a corner drawn onto a finger's edge there).
     gk = np.stack([keep % cols, keep // cols], axis=-1)
-    good = _lens_rescue(gk, refined[ok], _consistent(gk, refined[ok], spacing), spacing, grey.shape)
+    good = _lens_rescue(gk, refined[ok], _consistent(gk, refined[ok], spacing), _check_tol(spacing),
+                        grey.shape)
     out[keep[good]] = refined[ok][good]
     sigma[keep[good]] = sig[ok][good]
     if _bent_fraction(out.reshape(rows, cols, 2)) > 0.1:
@@ -985,7 +986,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & _fits_well(sig)
     keep[keep] = _point_symmetric(s, q[keep], spacing)
     sub = np.flatnonzero(keep)
-    keep[sub] = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), spacing, shape)
+    keep[sub] = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), _check_tol(spacing), shape)
     g, q, sig, symq = g[keep], q[keep], sig[keep], sym[keep]
     if len(g):
         part = _largest_part(g)
@@ -1151,6 +1152,12 @@ def _lattice_spacing(g: np.ndarray, p: np.ndarray, default: float = 11.0) -> flo
     return float(np.median(d)) if d.size else default
 
 
+def _check_tol(spacing: float) -> float:
+    """The tolerance (pixels) of :func:`_consistent` and :func:`_lens_rescue` for a lattice of
+    ``spacing`` pixels: 8 % of it, 0.6 px at least."""
+    return max(0.6, 0.08 * spacing)
+
+
 def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     """Which corners agree with their lattice neighbours: each corner against the quadratic
     map (lattice to image) fitted on the corners within two steps of it, itself left out. A
@@ -1163,42 +1170,45 @@ def _consistent(g: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
     0.6 px at least. (A looser one for corners with a clean saddle fit, 10-12 %, finds more
     fisheye boards but lets wrong corners that support each other through.)"""
     keep = np.ones(len(g), dtype=bool)
-    tol = np.full(len(g), max(0.6, 0.08 * spacing))
+    tol = np.full(len(g), _check_tol(spacing))
     if len(g):
         lattice_kernels.consistent(_grid(g), np.ascontiguousarray(q, dtype=np.float64), tol, keep)
     return keep
 
 
-def _lens_rescue(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: float,
-                 shape: tuple[int, ...]) -> np.ndarray:
-    """``keep`` with the corners that failed the local check (:func:`_consistent`) put back
-    where a global model of the lattice's image, fitted on the corners that passed, predicts
-    them within the same tolerance.
+def _lens_rescue(g: np.ndarray, q: np.ndarray, keep: np.ndarray, tol: float | np.ndarray,
+                 shape: tuple[int, ...], min_span: float = 2.0, back: float = np.inf) -> np.ndarray:
+    """``keep`` with the corners that failed a local check (:func:`_consistent`; the AprilGrid's
+    :func:`~camkit.target._markers.consistent_points`) put back where a global model of the
+    lattice's image, fitted on the corners that passed, predicts them within the same
+    tolerance ``tol`` (pixels: one for all, or (N,) one per corner), and within ``back``
+    pixels.
 
     A quadratic over two steps cannot follow a board near a fisheye's rim (squares growing 1.5
     times a step); a lens can be modelled. The model (:class:`_LensMap`) is a homography (the
     board's plane seen in perspective) followed by radial distortion about a free centre, the
     division model of Fitzgibbon (CVPR 2001) with a second term. It is trusted only where it
     predicts what it was not fitted on: the outer corners of those that passed, a quarter at a
-    time, are left out, the model fitted on the rest, and each must come within the
+    time, are left out, the model fitted on the rest, and each must come within its
     tolerance (the rescued corners are predicted the same way, out of the fit). At least ten
-    corners must pass, spanning two steps both ways; the centre is free from twenty."""
+    corners must pass, spanning ``min_span`` units of ``g`` (lattice steps for the
+    checkerboard: two) both ways; the centre is free from twenty."""
+    tol = np.broadcast_to(np.asarray(tol, dtype=np.float64), (len(g),))
     for _ in range(3):  # the corners put back help fit the model that judges the rest
-        more = _lens_rescue_once(g, q, keep, spacing, shape)
+        more = _lens_rescue_once(g, q, keep, tol, shape, min_span, back)
         if more.sum() == keep.sum():
             break
         keep = more
     return keep
 
 
-def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: float,
-                      shape: tuple[int, ...]) -> np.ndarray:
-    tol = max(0.6, 0.08 * spacing)
-    if keep.all() or keep.sum() < 10 or np.ptp(g[keep], axis=0).min() < 2:
+def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, tol: np.ndarray,
+                      shape: tuple[int, ...], min_span: float, back: float) -> np.ndarray:
+    if keep.all() or keep.sum() < 10 or np.ptp(g[keep], axis=0).min() < min_span:
         return keep
-    gk, qk = g[keep].astype(np.float64), q[keep]
+    gk, qk, tk = g[keep].astype(np.float64), q[keep], tol[keep]
     lm = _LensMap(shape, len(gk) >= 20, gk)
-    p = lm.fit(gk, qk, near=4.0 * tol)
+    p = lm.fit(gk, qk, near=4.0 * float(np.median(tk)))
     if p is None:
         return keep
     lo, hi = gk.min(axis=0), gk.max(axis=0)
@@ -1208,12 +1218,12 @@ def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, spacing: f
         rest = np.ones(len(gk), dtype=bool)
         rest[held] = False
         pk = lm.fit(gk[rest], qk[rest], start=p)
-        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tol):
+        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tk[held]):
             return keep
     drop = np.flatnonzero(~keep)
     miss = np.hypot(*(lm.predict(p, g[drop].astype(np.float64)) - q[drop]).T)
     out = keep.copy()
-    out[drop[miss <= tol]] = True
+    out[drop[miss <= np.minimum(tol[drop], back)]] = True
     return out
 
 
@@ -1233,13 +1243,20 @@ class _LensMap:
         self.gs = max(float(np.sqrt(((lattice - self.g0) ** 2).sum(axis=1).mean())), 1e-9)
 
     def _map(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
-        p = np.r_[p, np.zeros(12 - len(p))]
-        h = np.c_[(g - self.g0) / self.gs, np.ones(len(g))] @ np.r_[p[:8], 1.0].reshape(3, 3).T
+        return self._map_many(p[None], g)[0]
+
+    def _map_many(self, P: np.ndarray, g: np.ndarray) -> np.ndarray:
+        """The map of the lattice points ``g`` (N, 2) under each parameter vector of ``P``
+        (K, 9 or 12): (K, N, 2), in the centred, scaled image coordinates. One pass for all
+        of them: the forward-difference Jacobian's twelve columns at once."""
+        P = np.concatenate([P, np.zeros((len(P), 12 - P.shape[1]))], axis=1)
+        Hm = np.concatenate([P[:, :8], np.ones((len(P), 1))], axis=1).reshape(-1, 3, 3)
+        h = np.c_[(g - self.g0) / self.gs, np.ones(len(g))][None] @ Hm.transpose(0, 2, 1)  # (K, N, 3)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            u = h[:, :2] / h[:, 2:] - p[10:12]
-            r2 = (u * u).sum(axis=1)
-            d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * p[8] * r2, 0.0))))[:, None]
-            return p[10:12] + d * (1.0 + p[9] * (d * d).sum(axis=1))[:, None]
+            u = h[..., :2] / h[..., 2:] - P[:, None, 10:12]
+            r2 = (u * u).sum(axis=2)
+            d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * P[:, 8:9] * r2, 0.0))))[..., None]
+            return P[:, None, 10:12] + d * (1.0 + P[:, 9:10] * (d * d).sum(axis=2))[..., None]
 
     def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
             near: float = np.inf) -> np.ndarray | None:
@@ -1265,17 +1282,20 @@ class _LensMap:
             if best_start is None or not best_miss <= near or best_start[8] == 0.0:
                 return None
             start = best_start
-        return _levenberg_marquardt(lambda p: (self._map(p, g) - qn).ravel(), start, 40)
+        return _levenberg_marquardt(lambda p: (self._map(p, g) - qn).ravel(), start, 40,
+                                    lambda P: (self._map_many(P, g) - qn[None]).reshape(len(P), -1))
 
     def predict(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
         return self._map(p, g) * self.f + self.centre
 
 
-def _levenberg_marquardt(residuals, p0: np.ndarray, max_iter: int) -> np.ndarray | None:
+def _levenberg_marquardt(residuals, p0: np.ndarray, max_iter: int, residuals_many=None) -> np.ndarray | None:
     """Minimise ``|residuals(p)|^2`` from ``p0``: Levenberg-Marquardt with Marquardt's scaling
     (the damping on the diagonal of J^T J) and a forward-difference Jacobian, for the few
     parameters of a detector's model (camkit's sparse solver, :mod:`camkit.calib.refine`,
-    serves the calibration above this layer). None where the start is not finite."""
+    serves the calibration above this layer). ``residuals_many``, where given, gives the
+    residuals of the rows of a (K, n) array of parameter vectors at once (the Jacobian's
+    columns in one call). None where the start is not finite."""
     p = np.array(p0, dtype=np.float64)
     with np.errstate(all="ignore"):
         r = residuals(p)
@@ -1285,7 +1305,10 @@ def _levenberg_marquardt(residuals, p0: np.ndarray, max_iter: int) -> np.ndarray
         damping = 1e-3
         for _ in range(max_iter):
             h = 1e-7 * np.maximum(np.abs(p), 1.0)
-            J = np.stack([(residuals(p + h[i] * np.eye(len(p))[i]) - r) / h[i] for i in range(len(p))], axis=1)
+            if residuals_many is None:
+                J = np.stack([(residuals(p + h[i] * np.eye(len(p))[i]) - r) / h[i] for i in range(len(p))], axis=1)
+            else:
+                J = ((residuals_many(p[None, :] + np.diag(h)) - r[None, :]) / h[:, None]).T
             A, g = J.T @ J, J.T @ r
             diag = np.maximum(np.diag(A), 1e-12)
             while True:
