@@ -335,6 +335,20 @@ def test_tags_chained_to_their_corner_squares_are_cut_apart_at_the_junctions():
     assert det.n_found >= 56 and err.max() < 0.5, (det.message, err.max())
 
 
+
+def _check_corpus_view(seed: int, max_err: float, max_missed: int) -> None:
+    """AprilGrid corpus view ``seed`` (benchmarks/aprilgrid_corpus.py): every corner returned
+    within ``max_err`` px of its id's truth, and at most ``max_missed`` of the eligible corners
+    (tags wholly in view, 2 px a cell, within 70 degrees) missed."""
+    from benchmarks.aprilgrid_corpus import eligible, view
+
+    grid, camera, _, pose, img, truth, _ = view(seed)
+    det = grid.detect(img)
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    el = np.flatnonzero(eligible(grid, camera, pose, truth))
+    assert err.max() < max_err, (det.message, err.max())
+    assert np.isin(el, det.ids).sum() >= len(el) - max_missed, (len(el), np.isin(el, det.ids).sum())
+
 def test_a_tags_exact_corners_are_not_taken_from_a_neighbour_read_with_its_corner_square():
     """Corpus view 1063 (pinhole, 5 x 7 tags of 40 px seen aslant, noise): nine tags were read
     with a corner square joined at some corners (their quads 4-9 px off there). Where one
@@ -344,14 +358,7 @@ def test_a_tags_exact_corners_are_not_taken_from_a_neighbour_read_with_its_corne
     turned those tags' cells, and the reading again took 33 of the 140 corners. A corner is
     now taken from the tags beside it only where it has a joined corner square's signature,
     whichever map predicted it."""
-    from benchmarks.aprilgrid_corpus import eligible, view
-
-    grid, camera, _, pose, img, truth, _ = view(1063)
-    det = grid.detect(img)
-    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
-    el = np.flatnonzero(eligible(grid, camera, pose, truth))
-    assert err.max() < 0.5, (det.message, err.max())
-    assert np.isin(el, det.ids).sum() >= len(el) - 8, (len(el), np.isin(el, det.ids).sum())
+    _check_corpus_view(1063, max_err=0.5, max_missed=8)
 
 
 def test_corners_tried_again_from_their_neighbours_are_held_to_the_grown_corners_sigma_test():
@@ -378,12 +385,5 @@ def test_corners_at_a_fisheyes_rim_the_local_check_cannot_follow_are_put_back_by
     corners went. A global model of the lens (the checkerboard's rescue: a homography and
     radial distortion about a free centre, trusted where it predicts the outer corners it
     was not fitted on) puts back those it predicts within half a pixel."""
-    from benchmarks.aprilgrid_corpus import eligible, view
-
-    grid, camera, _, pose, img, truth, _ = view(1304)
-    det = grid.detect(img)
-    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
-    el = np.flatnonzero(eligible(grid, camera, pose, truth))
-    assert err.max() < 0.5, (det.message, err.max())
-    assert np.isin(el, det.ids).sum() >= len(el) - 2, (len(el), np.isin(el, det.ids).sum())
+    _check_corpus_view(1304, max_err=0.5, max_missed=2)
 
