@@ -402,7 +402,7 @@ def test_lens_model_puts_back_fisheye_corners_and_not_a_wrong_one():
         q[8] += 0.25 * spacing * np.array([0.6, 0.8])
         keep = cb._consistent(g, q, spacing)
         assert keep.sum() <= 15 and not keep[8]
-        back = cb._lens_rescue(g, q, keep, spacing, (480, 640))
+        back = cb._lens_rescue(g, q, keep, cb._check_tol(spacing), (480, 640))
         assert back.sum() == 23 and not back[8]
 
 
