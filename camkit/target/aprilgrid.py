@@ -65,8 +65,8 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    under 4.5 %), worst first; a corner so dropped is put back where a global model of the
    lens (a homography and radial distortion about a free centre, fitted on the corners that
    passed and trusted only where it predicts the outer ones it was not fitted on) predicts it
-   within the same tolerance: at the grid's edge through a strong lens the quadratic on one
-   side of a corner cannot follow the bend.
+   within the same tolerance and half a pixel: at the grid's edge through a strong lens the
+   quadratic on one side of a corner cannot follow the bend.
 """
 
 from __future__ import annotations
