@@ -1227,6 +1227,35 @@ def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, tol: np.nd
     return out
 
 
+def _lens_veto(g: np.ndarray, q: np.ndarray, keep: np.ndarray, shape: tuple[int, ...], floor: float,
+               spread: float, min_span: float, rounds: int = 8) -> np.ndarray:
+    """``keep`` without the corners that a global model of the lattice's image (:class:`_LensMap`,
+    a homography where no lens bends it), fitted on all those kept, misses by more than
+    ``floor`` pixels and ``spread`` times the fit's robust spread (1.4826 times the median
+    miss): the worst first, the model fitted again without it, at most ``rounds`` times.
+    Where the model cannot follow the image (a lens beyond it, a board not flat) the spread is
+    large and nothing goes. At least twenty corners spanning ``min_span`` units of ``g`` both
+    ways, else ``keep`` as it is. The AprilGrid's last word on a corner a local check let
+    through: a local map is fitted on its few neighbours, all on one side at the grid's edge,
+    and must allow for a lens there; this model is fitted on all of them."""
+    keep = keep.copy()
+    p = None
+    for _ in range(rounds):
+        idx = np.flatnonzero(keep)
+        if len(idx) < 20 or np.ptp(g[idx], axis=0).min() < min_span:
+            break
+        lm = _LensMap(shape, True, g[idx])
+        p = lm.fit(g[idx], q[idx], plain=True)
+        if p is None:
+            break
+        miss = np.hypot(*(lm.predict(p, g[idx]) - q[idx]).T)
+        worst = int(np.argmax(miss))
+        if not miss[worst] > max(floor, spread * 1.4826 * float(np.median(miss))):
+            break
+        keep[idx[worst]] = False
+    return keep
+
+
 class _LensMap:
     """Lattice -> image through a homography H and radial distortion about a centre c:
     ``u = H(g) - c``, ``d = u * 2 / (1 + sqrt(1 - 4 l1 |u|^2))`` (the point whose division-model
@@ -1259,12 +1288,13 @@ class _LensMap:
             return P[:, None, 10:12] + d * (1.0 + P[:, 9:10] * (d * d).sum(axis=2))[..., None]
 
     def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
-            near: float = np.inf) -> np.ndarray | None:
+            near: float = np.inf, plain: bool = False) -> np.ndarray | None:
         """Least squares (:func:`_levenberg_marquardt`) from ``start``, else from the best of
         a few division-model strengths with a homography each (the division model undistorts
         in closed form); None where that best start misses a point by more than ``near``
-        pixels (no such lens is near), where it is the undistorted one (a homography: the
-        local quadratic check already follows it), or where the fit fails."""
+        pixels (no such lens is near), where it is the undistorted one and ``plain`` is false
+        (a homography: the local quadratic check already follows it), or where the fit
+        fails."""
         qn = (q - self.centre) / self.f
         gn = (g - self.g0) / self.gs
         if start is None:
@@ -1279,7 +1309,7 @@ class _LensMap:
                 miss = float(np.max(np.hypot(*((self._map(p0, g) - qn) * self.f).T)))
                 if miss < best_miss:
                     best_start, best_miss = p0, miss
-            if best_start is None or not best_miss <= near or best_start[8] == 0.0:
+            if best_start is None or not best_miss <= near or (best_start[8] == 0.0 and not plain):
                 return None
             start = best_start
         return _levenberg_marquardt(lambda p: (self._map(p, g) - qn).ravel(), start, 40,
