@@ -378,6 +378,22 @@ def test_corners_tried_again_from_their_neighbours_are_held_to_the_grown_corners
     assert det.n_found >= 150 and err.max() < 1.0, (det.n_found, err.max())
 
 
+def test_a_small_tag_through_a_strong_lens_is_read_again_as_it_was_first_read():
+    """Corpus view 1307 (fisheye, tags of 20-28 px): tags 14 and 22 read first through a lens
+    of some strength (the reading's fallback), then not again through their corners, all
+    within 0.17 px of the truth, at the view's strength: their eight eligible corners went.
+    A tag that reads as no code is now read again through the strengths the first reading
+    tries."""
+    _check_corpus_view(1307, max_err=0.5, max_missed=0)
+
+
+def test_a_corner_by_the_images_edge_is_fitted_with_a_window_that_fits():
+    """Corpus view 1298 (barrel): a tag's corner 6 px from the image's edge, where the window
+    of 5 px and its support did not fit inside the image, and the fit, 0.02 px from the
+    truth, went. The window now shrinks to fit."""
+    _check_corpus_view(1298, max_err=0.5, max_missed=0)
+
+
 def test_a_corner_off_the_whole_grids_lens_model_goes_though_its_neighbours_let_it_through():
     """Corpus view 1550 (pinhole, 8 x 7 tags of 37-48 px, corner squares of 8 px, blur): corner
     98's fit from its tag's quad took the saddle a blur makes beside the junction, 2.7 px off,
