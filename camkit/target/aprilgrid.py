@@ -87,6 +87,7 @@ from camkit.errors import ParameterError
 from camkit.target._markers import (
     BENDS,
     TypicalSigma,
+    _read_bent,
     apart_from_found,
     confirm_markers,
     consistent_points,
@@ -331,15 +332,10 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         k = np.flatnonzero(got)
         codes, turns = read_markers(full, at[k], grid.aruco, BORDER_BITS, bend=bend)
         # One that reads as no code is read again through the lens strengths the first reading
-        # tries (:data:`BENDS`), as it was first read: tags of 20-28 px through a fisheye or a
+        # tries (:func:`_read_bent`), as it was first read: tags of 20-28 px through a fisheye or a
         # strong barrel read through their exact corners at some strengths and not at the
         # view's (corpus views 1307, 1313, 1337, 1396: 20 right corners dropped).
-        for b in BENDS:
-            fail = np.flatnonzero(codes < 0)
-            if not len(fail):
-                break
-            if b != bend:
-                codes[fail], turns[fail] = read_markers(full, at[k[fail]], grid.aruco, BORDER_BITS, bend=b)
+        codes, turns, _ = _read_bent(full, at[k], codes, turns, grid.aruco, BORDER_BITS)
         drop = tid[k[(codes != t_arr[k]) | (turns != 0)]].ravel()
         out[drop] = np.nan
         sig[drop] = np.nan

@@ -1239,7 +1239,6 @@ def _lens_veto(g: np.ndarray, q: np.ndarray, keep: np.ndarray, shape: tuple[int,
     through: a local map is fitted on its few neighbours, all on one side at the grid's edge,
     and must allow for a lens there; this model is fitted on all of them."""
     keep = keep.copy()
-    p = None
     for _ in range(rounds):
         idx = np.flatnonzero(keep)
         if len(idx) < 20 or np.ptp(g[idx], axis=0).min() < min_span:

@@ -335,7 +335,6 @@ def test_tags_chained_to_their_corner_squares_are_cut_apart_at_the_junctions():
     assert det.n_found >= 56 and err.max() < 0.5, (det.message, err.max())
 
 
-
 def _check_corpus_view(seed: int, max_err: float, max_missed: int) -> None:
     """AprilGrid corpus view ``seed`` (benchmarks/aprilgrid_corpus.py): every corner returned
     within ``max_err`` px of its id's truth, and at most ``max_missed`` of the eligible corners
@@ -348,6 +347,7 @@ def _check_corpus_view(seed: int, max_err: float, max_missed: int) -> None:
     el = np.flatnonzero(eligible(grid, camera, pose, truth))
     assert err.max() < max_err, (det.message, err.max())
     assert np.isin(el, det.ids).sum() >= len(el) - max_missed, (len(el), np.isin(el, det.ids).sum())
+
 
 def test_a_tags_exact_corners_are_not_taken_from_a_neighbour_read_with_its_corner_square():
     """Corpus view 1063 (pinhole, 5 x 7 tags of 40 px seen aslant, noise): nine tags were read
@@ -406,9 +406,9 @@ def test_a_corner_off_the_whole_grids_lens_model_goes_though_its_neighbours_let_
 
 def test_the_lens_veto_takes_a_moved_corner_and_nothing_where_the_model_cannot_follow():
     """:func:`_lens_veto` on an AprilGrid's corners through a barrel lens: a corner moved by
-    2 px (within the local check's tolerance for its tags of 45 px, 2.7 px) goes, and only it; with
-    the corners bent by a ripple no lens model follows (2 px, the board not flat), the spread
-    of the fit's misses is large and nothing goes."""
+    2 px (within the local check's tolerance for its tags of 45 px, 2.7 px) goes, and only
+    it; with the corners bent by a ripple no lens model follows (2 px, the board not flat),
+    the spread of the fit's misses is large and nothing goes."""
     from camkit.target.checkerboard import _lens_veto
 
     grid = AprilGrid(6, 5, 0.03, 0.3)
@@ -434,4 +434,3 @@ def test_corners_at_a_fisheyes_rim_the_local_check_cannot_follow_are_put_back_by
     radial distortion about a free centre, trusted where it predicts the outer corners it
     was not fitted on) puts back those it predicts within half a pixel."""
     _check_corpus_view(1304, max_err=0.5, max_missed=2)
-
