@@ -7,6 +7,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from camkit._kernels.remap import keys4
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def gaussian_taps(sigma: float) -> np.ndarray:  # pragma: no cover - numba
@@ -117,21 +119,24 @@ def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: in
     for p in prange(origin.shape[0]):
         x0, y0 = origin[p, 0], origin[p, 1]
         tx, ty = tile[p, 0], tile[p, 1]
-        tmp = np.empty((side + 2 * R, side))
+        # Tap after tap along whole rows (each sum in the taps' order, as gaussian_blur's).
+        row = np.empty(side + 2 * R)
+        tmp = np.zeros((side + 2 * R, side))
         for j in range(side + 2 * R):
             yy = min(max(y0 + j - R, 0), H - 1)
-            for x in range(side):
-                acc = 0.0
-                for i in range(2 * R + 1):
-                    xx = min(max(x0 + x + i - R, 0), W - 1)
-                    acc += k[i] * img[yy, xx]
-                tmp[j, x] = acc
+            for x in range(side + 2 * R):
+                row[x] = img[yy, min(max(x0 + x - R, 0), W - 1)]
+            for i in range(2 * R + 1):
+                for x in range(side):
+                    tmp[j, x] += k[i] * row[x + i]
+        acc = np.empty(side)
         for y in range(side):
+            acc[:] = 0.0
+            for i in range(2 * R + 1):
+                for x in range(side):
+                    acc[x] += k[i] * tmp[y + i, x]
             for x in range(side):
-                acc = 0.0
-                for i in range(2 * R + 1):
-                    acc += k[i] * tmp[y + i, x]
-                out[ty + y, tx + x] = acc
+                out[ty + y, tx + x] = acc[x]
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
@@ -368,3 +373,79 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         cov[k, 1] = cxy
         cov[k, 2] = cyy
         wres[k] = math.sqrt(rr / (ww * t2 * t2)) if ww > 0.0 else np.nan
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndarray, cvar: float, q: np.ndarray,
+               sigma: np.ndarray, resid: np.ndarray) -> None:  # pragma: no cover - numba
+    """The saddle fit of :func:`camkit.target.checkerboard._saddle_fit`, point by point: the
+    quadratic ``pinv`` (6, (2r+1)^2: the pseudo-inverse of its design matrix, columns dx^2,
+    dx dy, dy^2, dx, dy, 1 over the window's offsets in row-major order) fitted on the
+    (2r+1)^2 window about each estimate, sampled bicubically (Keys, a = -0.5, edges
+    replicated, as :func:`camkit._kernels.lattice.sample_points`: the window's offsets are
+    whole pixels, so each row of four taps is summed once per window row); ``iters`` steps
+    to the quadratic's saddle, each at most a pixel either way (none where it is flat), then
+    the fit again. Writes the place ``q[k]``, its sigma ``sigma[k]`` (the residuals' variance
+    times ``cvar``, the (3, 3) element of (A^T A)^-1, through the saddle's equations; NaN
+    where the saddle lies half a pixel or more from the window's centre), and the residuals'
+    standard deviation ``resid[k]`` (NaN where the sigma is)."""
+    H, W = s.shape
+    n = 2 * r + 1
+    N = n * n
+    for k in prange(pts.shape[0]):
+        hrow = np.empty((n + 3, n))
+        vals = np.empty(N)
+        c = np.zeros(6)
+        qx = pts[k, 0]
+        qy = pts[k, 1]
+        for it in range(iters + 1):
+            fx = math.floor(qx)
+            fy = math.floor(qy)
+            wx = keys4(qx - fx, -0.5)
+            wy = keys4(qy - fy, -0.5)
+            ix = int(fx) - r - 1
+            iy = int(fy) - r - 1
+            for j in range(n + 3):
+                yy = min(max(iy + j, 0), H - 1)
+                for i in range(n):
+                    acc = 0.0
+                    for m in range(4):
+                        xx = min(max(ix + i + m, 0), W - 1)
+                        acc += wx[m] * s[yy, xx]
+                    hrow[j, i] = acc
+            for j in range(n):
+                for i in range(n):
+                    acc = 0.0
+                    for m in range(4):
+                        acc += wy[m] * hrow[j + m, i]
+                    vals[j * n + i] = acc
+            for t in range(6):
+                acc = 0.0
+                for i in range(N):
+                    acc += pinv[t, i] * vals[i]
+                c[t] = acc
+            a, b, cc, d, e = c[0], c[1], c[2], c[3], c[4]
+            det = 4.0 * a * cc - b * b
+            sx = (-2.0 * cc * d + b * e) / det
+            sy = (b * d - 2.0 * a * e) / det
+            if it == iters:
+                ss = 0.0
+                for j in range(n):
+                    for i in range(n):
+                        dx = float(i - r)
+                        dy = float(j - r)
+                        f = a * dx * dx + b * dx * dy + cc * dy * dy + d * dx + e * dy + c[5]
+                        rr = vals[j * n + i] - f
+                        ss += rr * rr
+                var = ss / max(N - 6, 1)
+                h11, h12, h22 = 2.0 * cc / det, -b / det, 2.0 * a / det
+                sg = math.sqrt(0.5 * var * cvar * (h11 * h11 + 2.0 * h12 * h12 + h22 * h22))
+                q[k, 0] = qx
+                q[k, 1] = qy
+                sigma[k] = sg if math.hypot(sx, sy) < 0.5 else np.nan
+                resid[k] = math.sqrt(var) if math.isfinite(sigma[k]) else np.nan
+                break
+            sx = 0.0 if math.isnan(sx) else min(max(sx, -1.0), 1.0)
+            sy = 0.0 if math.isnan(sy) else min(max(sy, -1.0), 1.0)
+            qx += sx
+            qy += sy

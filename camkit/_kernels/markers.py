@@ -67,11 +67,13 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
     """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1)."""
     H, W = mask.shape
+    m = mask.view(np.uint8)
     n = 0
-    for y in range(H):
-        for x in range(W):
-            if mask[y, x] and (x == 0 or not mask[y, x - 1]):
-                n += 1
+    for y in range(H):  # a run starts where a set pixel follows a clear one (branch-free)
+        c = np.int64(m[y, 0])
+        for x in range(1, W):
+            c += m[y, x] > m[y, x - 1]
+        n += c
     ry = np.empty(n, dtype=np.int64)
     r0 = np.empty(n, dtype=np.int64)
     r1 = np.empty(n, dtype=np.int64)
@@ -221,6 +223,38 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
         if not (hi > 0 and lo < 0 and abs(_shoelace(quads[g])) >= 0.6 * area):
             _hull_quad(g, area, start, order, ry, r0, r1, stats, quads)
     return stats, quads
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def mask_quads(mask: np.ndarray, min_area: int, max_area: int, min_side: int) -> np.ndarray:  # pragma: no cover
+    """The quads (K, 4, 2) of the regions of ``mask`` (:func:`region_quads`) that are quads, not
+    triangles or blobs: their four corners span 0.6 of the region's area at least, and a quad
+    not taken from the hull has a box at most 8 times longer than wide; clockwise in the image
+    (positive shoelace area, y down), in the regions' order."""
+    stats, quads = region_quads(mask, min_area, max_area, min_side)
+    n = stats.shape[0]
+    keep = np.zeros(n, dtype=np.bool_)
+    k = 0
+    for g in range(n):
+        area = stats[g, 0]
+        if area <= 0:
+            continue
+        w = stats[g, 3] - stats[g, 1] + 1
+        h = stats[g, 4] - stats[g, 2] + 1
+        if (stats[g, 5] == 1 or max(w, h) <= 8 * min(w, h)) and abs(_shoelace(quads[g])) >= 0.6 * area:
+            keep[g] = True
+            k += 1
+    out = np.empty((k, 4, 2))
+    k = 0
+    for g in range(n):
+        if keep[g]:
+            flip = _shoelace(quads[g]) <= 0
+            for c in range(4):
+                src = 3 - c if flip else c
+                out[k, c, 0] = quads[g, src, 0]
+                out[k, c, 1] = quads[g, src, 1]
+            k += 1
+    return out
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -181,21 +181,12 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
 
 
 def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
-    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise.
-    Serial kernels only (``nogil``): the masks' regions are labelled on threads side by side."""
+    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise:
+    those whose four corners span most of the region's area (a triangle or a blob's do not;
+    kernel :func:`camkit._kernels.markers.mask_quads`). A serial kernel (``nogil``) wholly:
+    the masks' regions are labelled on threads side by side."""
     H, W = dark.shape
-    stats, quads = markers_kernels.region_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
-    if not len(stats):
-        return np.zeros((0, 4, 2))
-    area = stats[:, 0].astype(np.float64)
-    w = stats[:, 3] - stats[:, 1] + 1
-    h = stats[:, 4] - stats[:, 2] + 1
-    shoelace = quad_area(quads)
-    # A quad, not a triangle or a blob: its four corners span most of the region's area (a
-    # hull's quad, stats[:, 5], was judged so by the kernel, whatever its box).
-    hull = stats[:, 5] == 1
-    ok = (area > 0) & (hull | (np.maximum(w, h) <= 8 * np.minimum(w, h))) & (np.abs(shoelace) >= 0.6 * area)
-    return np.where((shoelace > 0)[:, None, None], quads, quads[:, ::-1])[ok]
+    return markers_kernels.mask_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
 
 
 _POOL: ThreadPoolExecutor | None = None
@@ -383,8 +374,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
         if len(level) >= len(found):
             found = level  # the finer level's corners where it reads as much
         # A marker's narrowest side per cell, at this level.
-        cells = [narrowest_side(c[0]) / f / n_cells for c in level.values()]
-        if len(level) >= 2 and np.median(cells) >= 2.0:
+        if len(level) >= 2 and np.median(narrowest_side(np.stack([c[0] for c in level.values()])) / f / n_cells) >= 2.0:
             break
     return found, f, g
 
@@ -602,21 +592,23 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
         homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
         ids = [m for m in ids if m in homs]
     pitch = {m: float(np.sqrt(abs(quad_area(found[m][0])))) * step for m in ids}
-    agree = dict.fromkeys(ids, 0)
-    disagree = dict.fromkeys(ids, 0)
-    pairs = [(m, j) for a, m in enumerate(ids) for j in ids[a + 1:] if np.abs(grid[j] - grid[m]).max() <= 2]
-    if pairs:
-        src = np.stack([np.concatenate([obj[m], obj[j]]) for m, j in pairs])
-        dst = np.stack([np.concatenate([found[m][0], found[j][0]]) for m, j in pairs])
-        worst = homography_misfit(src, dst)
-        for (m, j), w in zip(pairs, worst, strict=True):
-            tol = max(2.0 * factor, 0.15 * min(pitch[m], pitch[j]))
-            for a in (m, j):
-                if w < tol:
-                    agree[a] += 1
-                else:
-                    disagree[a] += 1
-    confirmed = [m for m in ids if agree[m] >= 1 and agree[m] > disagree[m]]
+    agree = np.zeros(len(ids), dtype=np.int64)
+    disagree = np.zeros(len(ids), dtype=np.int64)
+    if len(ids) >= 2:
+        g = grid[ids]
+        near = np.triu(np.abs(g[:, None] - g[None]).max(axis=2) <= 2, k=1)
+        a, j = np.nonzero(near)  # each pair once, in the order of ids
+        if len(a):
+            own = obj[ids]
+            img = np.stack([found[m][0] for m in ids])
+            worst = homography_misfit(np.concatenate([own[a], own[j]], axis=1),
+                                      np.concatenate([img[a], img[j]], axis=1))
+            p = np.array([pitch[m] for m in ids])
+            fits = worst < np.maximum(2.0 * factor, 0.15 * np.minimum(p[a], p[j]))
+            for both in (a, j):
+                np.add.at(agree, both[fits], 1)
+                np.add.at(disagree, both[~fits], 1)
+    confirmed = [m for m, y, n in zip(ids, agree, disagree, strict=True) if y >= 1 and y > n]
     return confirmed, {m: homs[m] for m in confirmed}, pitch
 
 

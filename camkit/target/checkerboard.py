@@ -267,6 +267,17 @@ def _quad_design(r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return dx, dy, np.stack([dx * dx, dx * dy, dy * dy, dx, dy, np.ones_like(dx)], -1)
 
 
+@functools.lru_cache(maxsize=32)
+def _saddle_design(r: int) -> tuple[np.ndarray, float]:
+    """The (2r+1)^2 window's quadratic (:func:`_quad_design`): its design matrix's
+    pseudo-inverse (6, (2r+1)^2) and the (3, 3) element of (A^T A)^-1, which a linear term's
+    variance per unit residual variance is (read only)."""
+    A = _quad_design(r)[2]
+    pinv = np.linalg.pinv(A)
+    pinv.setflags(write=False)
+    return pinv, float(np.linalg.inv(A.T @ A)[3, 3])
+
+
 def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6,
                 residuals: bool = False) -> tuple[np.ndarray, ...]:
     """Saddle point of a quadratic fitted on a (2r+1)^2 window centred on each estimate
@@ -275,34 +286,17 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6,
     converged (its saddle still half a pixel or more from the window's centre after ``iters``
     steps of at most a pixel: no saddle near the estimate). With ``residuals``, also the
     residuals' standard deviation (the sigma without the saddle's curvature: how well a
-    quadratic describes the window, whatever the junction's contrast), NaN where the sigma is."""
-    q = pts.astype(np.float64).copy()
-    dx, dy, A = _quad_design(r)
-    pinv = np.linalg.pinv(A)
-    AtA_inv = np.linalg.inv(A.T @ A)
-    for _ in range(iters):
-        vals = _sample(s, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
-        c = vals @ pinv.T
-        a, b, cc, d, e = c[:, 0], c[:, 1], c[:, 2], c[:, 3], c[:, 4]
-        det = 4 * a * cc - b * b
-        with np.errstate(divide="ignore", invalid="ignore"):  # a flat patch: no step
-            step = np.stack([(-2 * cc * d + b * e) / det, (b * d - 2 * a * e) / det], -1)
-        q += np.clip(np.nan_to_num(step, nan=0.0), -1.0, 1.0)
-    vals = _sample(s, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
-    c = vals @ pinv.T
-    res = vals - c @ A.T
-    var = (res * res).sum(axis=1) / max(A.shape[0] - 6, 1)
-    a, b, cc, d, e = c[:, 0], c[:, 1], c[:, 2], c[:, 3], c[:, 4]
-    Hdet = 4 * a * cc - b * b
-    with np.errstate(divide="ignore", invalid="ignore"):  # a flat patch (Hdet 0): NaN, dropped
-        rest = np.hypot((-2 * cc * d + b * e) / Hdet, (b * d - 2 * a * e) / Hdet)
-        # d saddle / d (d, e) = -H^-1, H = [[2a, b], [b, 2c]]; var(d) = var(e) = var * (AtA^-1)_33
-        h11, h12, h22 = 2 * cc / Hdet, -b / Hdet, 2 * a / Hdet
-        cvar = var * AtA_inv[3, 3]
-        sigma = np.sqrt(0.5 * cvar * (h11 * h11 + 2 * h12 * h12 + h22 * h22))
-    sigma = np.where(rest < 0.5, sigma, np.nan)
+    quadratic describes the window, whatever the junction's contrast), NaN where the sigma is
+    (kernel :func:`camkit._kernels.detect.saddle_fit`)."""
+    pinv, cvar = _saddle_design(int(r))
+    pts = np.ascontiguousarray(pts, dtype=np.float64).reshape(-1, 2)
+    q = np.empty_like(pts)
+    sigma = np.empty(len(pts))
+    resid = np.empty(len(pts))
+    detect_kernels.saddle_fit(np.ascontiguousarray(s, dtype=np.float64), pts, int(r), int(iters), pinv, cvar, q,
+                              sigma, resid)
     if residuals:
-        return q, sigma, np.where(np.isfinite(sigma), np.sqrt(var), np.nan)
+        return q, sigma, resid
     return q, sigma
 
 

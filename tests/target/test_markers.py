@@ -164,6 +164,36 @@ def test_region_quads_from_runs_are_those_of_the_pixels():
     assert n_hull >= 20
 
 
+def test_mask_quads_are_the_regions_quads_that_hold_their_region():
+    """The quads a mask gives (kernel mask_quads) against the regions' own (region_quads),
+    filtered in NumPy: a region with a quad that spans 0.6 of its area, its box at most 8
+    times longer than wide unless the quad is its hull's; turned clockwise where it ran the
+    other way (positive shoelace area, y down), in the regions' order."""
+    from scipy import ndimage
+
+    from camkit._kernels.markers import mask_quads, region_quads
+
+    rng = np.random.default_rng(8)
+    kept = turned = 0
+    for trial in range(40):
+        H, W = rng.integers(20, 120, 2)
+        m = rng.random((H, W)) < rng.uniform(0.2, 0.7)
+        if trial % 2:
+            m = ndimage.binary_opening(m)
+        stats, quads = region_quads(m, 4, H * W // 4, 2)
+        x, y = quads[..., 0], quads[..., 1]
+        area2 = (x * np.roll(y, -1, axis=1) - np.roll(x, -1, axis=1) * y).sum(axis=1)
+        w, h = stats[:, 3] - stats[:, 1] + 1, stats[:, 4] - stats[:, 2] + 1
+        ok = ((stats[:, 0] > 0) & ((stats[:, 5] == 1) | (np.maximum(w, h) <= 8 * np.minimum(w, h)))
+              & (np.abs(area2) / 2 >= 0.6 * stats[:, 0]))
+        want = np.where((area2 > 0)[:, None, None], quads, quads[:, ::-1])[ok]
+        got = mask_quads(m, 4, H * W // 4, 2)
+        np.testing.assert_array_equal(got, want)
+        kept += len(got)
+        turned += int((area2[ok] <= 0).sum())
+    assert kept >= 200 and turned >= 20
+
+
 def test_a_saddles_residuals_follow_the_noise_and_its_sigma_the_contrast_too():
     """The saddle fit's residuals (``refine_patches(..., residuals=True)``) measure how well a
     quadratic describes the window, not how sharply the junction's contrast fixes its saddle:
