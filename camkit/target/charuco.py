@@ -353,13 +353,24 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     clear = _clearance(board, cand, u, v)
     win, smooth = _windows(size[cand], clear, factor)
 
-    def fit(r: int, sm: float, k: np.ndarray) -> np.ndarray:
-        """Fit the corners ``k`` (a mask of ``cand``) with window ``r`` and smoothing ``sm``,
-        keep those that pass; return the mask of those whose fit found no saddle near."""
-        q, sg, res = refine_patches(full, pred[k], int(r), sm, residuals=True)
+    def fit(groups: list[tuple[int, float, np.ndarray]]) -> np.ndarray:
+        """Fit the corners of each group (window ``r``, smoothing ``sm``, ``k``: a mask of
+        ``cand``; the groups apart), keep those that pass; return the mask of those whose fit
+        found no saddle near."""
+        k = np.zeros(len(cand), dtype=bool)
+        q = np.empty((len(cand), 2))
+        sg = np.empty(len(cand))
+        res = np.empty(len(cand))
+        rk = np.zeros(len(cand), dtype=np.int64)
+        smk = np.zeros(len(cand))
+        for r, sm, g in groups:
+            q[g], sg[g], res[g] = refine_patches(full, pred[g], int(r), sm, residuals=True)
+            rk[g], smk[g] = r, sm
+            k |= g
+        q, sg, res, rk, smk = q[k], sg[k], res[k], rk[k], smk[k]
         moved = np.hypot(*(q - pred[k]).T)
         near = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, 0.1 * size[cand[k]]))
-        ok = near & fit_inside(q, int(r), full.shape)
+        ok = near & fit_inside(q, rk, full.shape)
         # On a circle inside the white margin that keeps the markers away (_x_test).
         kk = np.flatnonzero(k)[ok]
         x, mid, rho, ob = _x_test(board, full, q[ok], size[cand[k]][ok], clear[k][ok], u[kk], v[kk])
@@ -368,8 +379,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         ok[ok] = x
         out[cand[k][ok]] = q[ok]
         sig[cand[k][ok]] = sg[ok]
-        win_of[cand[k][ok]] = r
-        sm_of[cand[k][ok]] = sm
+        win_of[cand[k][ok]] = rk[ok]
+        sm_of[cand[k][ok]] = smk[ok]
         res_of[cand[k][ok]] = res[ok]
         lost = np.zeros(len(cand), dtype=bool)
         lost[np.flatnonzero(k)[~near]] = True
@@ -384,11 +395,10 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # within 0.12 px of the truth). Tried earlier, before growth and step 6, it took corners
     # that they find nearer the truth (0.02-0.09 px against 0.19-0.50 px).
     s0 = _FULL_SMOOTHING * factor
-    retry = np.zeros(len(cand), dtype=bool)
-    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
-        lost = fit(r, sm, (win == r) & (smooth == sm))
-        if sm < s0:
-            retry |= lost
+    # One saddle fit per window and smoothing; the tests after it all at once.
+    lost = fit([(r, sm, (win == r) & (smooth == sm))
+                for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True)))])
+    retry = lost & (smooth < s0)
     # A fit's sigma grows with its window (a quadratic follows the smoothed junction less far
     # out): each corner's is judged against the corners beside markers, those with about its
     # window refitted with it where their fits there are poorer.
@@ -410,10 +420,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir, res_of)
     _recover_symmetric(board, full, out, sig, noise, {m: found[m][0] for m in confirmed})
     retry &= ~np.isfinite(out[cand]).all(axis=1)
-    for r in np.unique(win[retry]).tolist():
-        k = retry & (win == r)
-        fit(r, s0, k)
-        c = cand[k]
+    if retry.any():
+        fit([(r, s0, retry & (win == r)) for r in np.unique(win[retry]).tolist()])
+        c = cand[retry]
         c = c[np.isfinite(out[c]).all(axis=1)]
         poor = ~typical.passes(sig[c], win_of[c], _SIGMA_RATIO, sm_of[c], chir[c], res_of[c])
         out[c[poor]] = np.nan
