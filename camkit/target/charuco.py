@@ -107,7 +107,7 @@ import numpy as np
 from camkit._kernels import detect as detect_kernels
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
-from camkit.target._homography import apply_homographies, apply_homography, fit_homographies
+from camkit.target._homography import apply_homographies, fit_homographies
 from camkit.target._markers import (
     TypicalSigma,
     add_marker,
@@ -301,14 +301,15 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     pred_sum = np.zeros((N, 5, 2))
     pred_n = np.zeros(N)
     size = np.zeros(N)
-    for m in confirmed:
-        x, y = ms[m]
-        for cx, cy in ((x, y), (x + 1, y), (x, y + 1), (x + 1, y + 1)):
-            if 1 <= cx <= sx - 1 and 1 <= cy <= board.squares_y - 1:
-                cid = (cy - 1) * (sx - 1) + (cx - 1)
-                pred_sum[cid] += apply_homography(homs[m], np.array([cx * s, cy * s]) + offsets)
-                pred_n[cid] += 1
-                size[cid] = max(size[cid], side_px[m])
+    # Each confirmed marker's four corners of its square, in turn (the sums in that order).
+    mine = ms[confirmed][:, None, :] + np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # (C, 4, 2)
+    mi, ci = np.nonzero((mine >= 1).all(axis=2) & (mine[..., 0] <= sx - 1) & (mine[..., 1] <= board.squares_y - 1))
+    at = mine[mi, ci]
+    cid = (at[:, 1] - 1) * (sx - 1) + (at[:, 0] - 1)
+    hs = np.stack([homs[m] for m in confirmed])[mi]
+    np.add.at(pred_sum, cid, apply_homographies(hs, (at * s)[:, None, :] + offsets))
+    np.add.at(pred_n, cid, 1)
+    np.maximum.at(size, cid, np.array([side_px[m] for m in confirmed])[mi])
     cand = np.flatnonzero(pred_n > 0)
     five = pred_sum[cand] / pred_n[cand, None, None]
     # Where two confirmed markers touch a corner (its four squares), the steps along the board
