@@ -68,10 +68,11 @@ def x_shades(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
-                 src: np.ndarray | None = None, bend: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+                 src: np.ndarray | None = None, bend: float = 0.0,
+                 middles: tuple[float, ...] = (0.3, 0.5, 0.7)) -> tuple[np.ndarray, np.ndarray]:
     """``(code ids, turns)`` of the markers in ``quads`` (K, 4, 2), clockwise corners; id -1
     where a quad holds no code (:func:`read_markers_rims`)."""
-    ids, turns, _ = read_markers_rims(g, quads, d, border, src, bend=bend)
+    ids, turns, _ = read_markers_rims(g, quads, d, border, src, bend=bend, middles=middles)
     return ids, turns
 
 
@@ -126,12 +127,14 @@ _RIM_TO_REFINE = 0.6
 
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
                       src: np.ndarray | None = None, rim_contrast: float = 0.15,
-                      bend: float = 0.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+                      bend: float = 0.0,
+                      middles: tuple[float, ...] = (0.3, 0.5, 0.7)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
     (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All
     quads at once: their homographies from the unit square, one sampling of every cell's 3 x 3
-    middle points and of the white margin around each. The code's cells are inside a black border ``border`` cells
+    middle points (at ``middles`` of the cell each way; its mean read) and of the white
+    margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
     lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
     corners. ``bend``: where not 0, the markers are read through a lens of that strength
@@ -143,7 +146,7 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
                           undistort(quads, bend, g.shape))
     ok = np.isfinite(Hs).all(axis=(1, 2))
     Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
-    ov, ou = np.meshgrid([0.3, 0.5, 0.7], [0.3, 0.5, 0.7], indexing="ij")  # 3 x 3 in each cell's middle
+    ov, ou = np.meshgrid(middles, middles, indexing="ij")  # in each cell's middle (3 x 3 by default)
     cy, cx = np.mgrid[0:n, 0:n]
     cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
     # The white margin around the marker: half a cell outside each side's middle.
@@ -159,8 +162,9 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
         px[~reach] = 0.0
     vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
                    "bilinear").reshape(K, len(pts))
-    cell = vals[:, :n * n * 9].reshape(K, n, n, 9).mean(axis=3)
-    white = np.median(vals[:, n * n * 9:], axis=1)
+    m = len(middles) ** 2
+    cell = vals[:, :n * n * m].reshape(K, n, n, m).mean(axis=3)
+    white = np.median(vals[:, n * n * m:], axis=1)
     inner = np.zeros((n, n), dtype=bool)
     inner[border:-border, border:-border] = True
     rim = cell[:, ~inner]
