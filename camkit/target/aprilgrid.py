@@ -341,7 +341,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         # blurred, the points 0.2 of a cell either side of the middle take in the blur of the
         # cells beside it (AprilGrid corpus views 5, 55 and 228: 13 tags of 23-29 px, every
         # corner within 0.08 px of the truth, read with 6-9 of their 36 bits wrong through
-        # their corners, 3-6 at the middles alone).
+        # their corners, 3-9 at the middles alone, and 6 of them as their own code).
         fail = np.flatnonzero(codes < 0)
         if len(fail):
             codes[fail], turns[fail] = read_markers(full, at[k][fail], grid.aruco, BORDER_BITS, bend=bend,
