@@ -388,7 +388,8 @@ def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndar
     the fit again. Writes the place ``q[k]``, its sigma ``sigma[k]`` (the residuals' variance
     times ``cvar``, the (3, 3) element of (A^T A)^-1, through the saddle's equations; NaN
     where the saddle lies half a pixel or more from the window's centre), and the residuals'
-    standard deviation ``resid[k]`` (NaN where the sigma is)."""
+    standard deviation ``resid[k]`` (NaN where the sigma is); all NaN for an estimate that is
+    not finite."""
     H, W = s.shape
     n = 2 * r + 1
     N = n * n
@@ -398,6 +399,9 @@ def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndar
         c = np.zeros(6)
         qx = pts[k, 0]
         qy = pts[k, 1]
+        if not (math.isfinite(qx) and math.isfinite(qy)):  # no place to fit at
+            q[k, 0] = q[k, 1] = sigma[k] = resid[k] = np.nan
+            continue
         for it in range(iters + 1):
             fx = math.floor(qx)
             fy = math.floor(qy)

@@ -132,9 +132,9 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
     (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All
-    quads at once: their homographies from the unit square, one sampling of every cell's 3 x 3
-    middle points (at ``middles`` of the cell each way; its mean read) and of the white
-    margin around each. The code's cells are inside a black border ``border`` cells
+    quads at once: their homographies from the unit square, one sampling of every cell's middle
+    points (3 x 3 by default: at ``middles`` of the cell each way; their mean read) and of the
+    white margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
     lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
     corners. ``bend``: where not 0, the markers are read through a lens of that strength

@@ -598,7 +598,7 @@ def test_the_saddle_fit_kernel_is_the_least_squares_quadratics_saddle():
     sample_points, the quadratic by least squares, the Newton step clipped to a pixel, the
     sigma and residuals from the last fit): X-junctions blurred, at random places and
     angles, started up to 1.5 px off, windows of 2 to 9 px: the same places, sigmas and
-    residuals to 1e-9."""
+    residuals to 1e-9; NaN from an estimate that is not finite."""
     from camkit._kernels import detect as detect_kernels
     from camkit._kernels import lattice as lattice_kernels
     from camkit.target.checkerboard import _saddle_fit
@@ -657,6 +657,9 @@ def test_the_saddle_fit_kernel_is_the_least_squares_quadratics_saddle():
             for g, f in zip(got, ref, strict=True):
                 np.testing.assert_allclose(g, f, rtol=1e-9, atol=1e-9)
     assert converged >= 60
+    # An estimate that is not finite has no window: NaN throughout, as the sampling gives.
+    none = _saddle_fit(s, np.array([[np.nan, 40.0], [60.0, np.inf]]), 3, 6, residuals=True)
+    assert all(np.isnan(x).all() for x in none)
 
 
 def test_half_mean_kernel_matches_numpy():
