@@ -19,7 +19,7 @@ from camkit.target.checkerboard import (
     _fit_noise_factors,
     _half,
     _image_noise,
-    _quad_design,
+    _saddle_design,
     _saddle_fit,
     _sample,
     _smoothed_patches,
@@ -754,8 +754,7 @@ def noise_sigma(sig: np.ndarray, res: np.ndarray, r: int, smoothing: float, nois
     ``sqrt(var (A^T A)^-1_33 S / 2)`` (S from the saddle's Hessian, var = res^2), the noise's
     ``sqrt(noise^2 (P K P^T)_33 S / 2)`` (:func:`_fit_noise_factors`: the smoothed noise's
     correlation K); so the ratio of the two scales ``sig``. NaN where ``sig`` is."""
-    _, _, A = _quad_design(r)
-    ata33 = float(np.linalg.inv(A.T @ A)[3, 3])
+    ata33 = _saddle_design(r)[1]
     var_grad = _fit_noise_factors(r, smoothing)[1][0]
     with np.errstate(divide="ignore", invalid="ignore"):
         return sig * noise * np.sqrt(var_grad / ata33) / res

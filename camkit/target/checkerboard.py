@@ -620,7 +620,7 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     pts = np.concatenate([mid, corners[seen]])
     mosaic, shift = _smoothed_patches(grey, pts, r + 3, smoothing)
     dx, dy, A = _quad_design(r)
-    P = np.linalg.pinv(A)
+    P = _saddle_design(r)[0]
     q = pts + shift
     vals = _sample(mosaic, q[:, :1] + dx, q[:, 1:] + dy, "bicubic")
     coef = vals @ P.T
