@@ -12,7 +12,8 @@ Scored per view against the render's truth:
 - wrong ids: returned corners more than 1 px from the true corner of their id;
 - found: the corners of tags wholly inside the frame (a tag is read whole: its corners carry
   its id) whose side spans 2 px a cell or more, seen at most 70 degrees from square on (the
-  line of sight to the corner, as ``benchmarks.charuco_corpus``; also without that condition);
+  line of sight to the corner, as ``benchmarks.charuco_corpus``; also without that condition;
+  a corner seen from behind the sheet, its tag mirrored, is not counted in either);
 - corner error: median over noise-free views, 95th percentile over the others;
 - OpenCV (``cv2.aruco.ArucoDetector``, the AprilTag dictionary, ``markerBorderBits = 2``,
   corners refined by ``cornerSubPix``, OpenCV's default window; a third of them land 2-4 px
@@ -43,7 +44,8 @@ def view(seed: int):
 def eligible(grid: AprilGrid, camera, pose, truth, any_angle: bool = False) -> np.ndarray:
     """The corners of tags wholly inside the frame whose sides span 2 px a cell or more, seen at
     most :data:`~benchmarks.charuco_corpus.MAX_OBLIQUITY` from square on (unless
-    ``any_angle``)."""
+    ``any_angle``; the printed face, in either case:
+    :func:`~benchmarks.charuco_corpus.obliquity`)."""
     ids = grid.tag_point_ids()
     c = truth.corners_px[ids]  # (T, 4, 2)
     W, H = camera.width, camera.height
@@ -53,7 +55,8 @@ def eligible(grid: AprilGrid, camera, pose, truth, any_angle: bool = False) -> n
     cells = grid.aruco.marker_size + 4
     ok = np.zeros(grid.n_points, dtype=bool)
     ok[ids[inside & (side >= 2.0 * cells)].ravel()] = True
-    return ok if any_angle else ok & (obliquity(pose, grid.object_points()) <= MAX_OBLIQUITY)
+    angle = obliquity(pose, grid.object_points(), grid.sheet().v_up)
+    return ok & (angle < 90.0) if any_angle else ok & (angle <= MAX_OBLIQUITY)
 
 
 def opencv_corners(grid: AprilGrid, img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

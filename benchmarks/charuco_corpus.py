@@ -14,8 +14,10 @@ Scored per view against the render's truth:
   degrees from square on (the issue's "poses up to 70 degrees", measured against the line of
   sight to the corner, as ``benchmarks.detect_corpus`` does: the pose's tilt is drawn about
   the camera's axis, so a board off the axis of a fisheye is seen up to edge on, its squares
-  slivers a pixel or two across); also over the views with a marker whose cells are 2 px or
-  more (a view without one has no label to start from), and without the angle's condition;
+  slivers a pixel or two across, or turned away: a corner seen from behind the sheet, its
+  markers mirrored, is not counted in any case); also over the views with a marker whose
+  cells are 2 px or more (a view without one has no label to start from), and without the
+  angle's condition;
 - corner error: median over noise-free views, 95th percentile over the others;
 - OpenCV (``cv2.aruco.CharucoDetector``, defaults; OpenCV >= 5): the ids it returns that camkit
   does not (and of those, the ones OpenCV places within a pixel of the truth, and of these the
@@ -90,17 +92,30 @@ def degrade(rng: np.random.Generator, img: np.ndarray) -> tuple[np.ndarray, bool
 MAX_OBLIQUITY = 70.0
 
 
-def obliquity(pose, points: np.ndarray) -> np.ndarray:
-    """The angle (degrees) between the board's normal and the line of sight to each of
-    ``points`` (board frame, (N, 3)): 0 seen square on, 90 edge on."""
+def obliquity(pose, points: np.ndarray, v_up: bool = False) -> np.ndarray:
+    """The angle (degrees) between the printed face's normal and the line of sight to each of
+    ``points`` (board frame, (N, 3)): 0 seen square on, 90 edge on, over 90 where the line of
+    sight meets the back of the sheet. ``v_up``: the target's :attr:`~camkit.target.Sheet.v_up`
+    (False: the target's z points away from a camera that sees the printed face, as OpenCV's
+    boards; True: towards it, as Kalibr's AprilGrid).
+
+    The pose's tilt is drawn about the camera's axis, so through a fisheye a board placed near
+    the rim can turn its back to the camera; :func:`camkit.render.render_target` draws the
+    sheet's marks from either side (a target printed on glass), and seen from behind a
+    marker is mirrored and holds no code. Such points are not seen as a paper target, and
+    the scores do not count them (AprilGrid corpus views 183, 1221, 1995: 103 eligible
+    corners before; ChArUco views 531 and 1221: 2)."""
     p = pose.apply(points)
-    cos = np.abs(p @ pose.R[:, 2]) / np.linalg.norm(p, axis=1)
-    return np.degrees(np.arccos(np.minimum(cos, 1.0)))
+    cos = (p @ pose.R[:, 2]) / np.linalg.norm(p, axis=1)
+    if v_up:
+        cos = -cos
+    return np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))
 
 
 def eligible(board: Charuco, camera, pose, truth, any_angle: bool = False) -> np.ndarray:
     """Corners whose four squares are inside the frame, with squares of 15 px or more, seen at
-    most :data:`MAX_OBLIQUITY` from square on (unless ``any_angle``)."""
+    most :data:`MAX_OBLIQUITY` from square on (unless ``any_angle``; the printed face, in
+    either case: :func:`obliquity`)."""
     s = board.square
     pts = board.object_points()
     W, H = camera.width, camera.height
@@ -112,7 +127,8 @@ def eligible(board: Charuco, camera, pose, truth, any_angle: bool = False) -> np
     # edge-on is narrow across one way only).
     step = np.minimum(np.hypot(*(around[:, 5] - around[:, 3]).T), np.hypot(*(around[:, 7] - around[:, 1]).T)) / 2
     ok = inside & (step >= 15)
-    return ok if any_angle else ok & (obliquity(pose, pts) <= MAX_OBLIQUITY)
+    angle = obliquity(pose, pts, board.sheet().v_up)
+    return ok & (angle < 90.0) if any_angle else ok & (angle <= MAX_OBLIQUITY)
 
 
 def readable(board, camera, pose) -> bool:
