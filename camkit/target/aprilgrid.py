@@ -335,13 +335,14 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         # A tag not read as itself with a corner not found is read once more with that corner
         # where the other tags' found corners put it (a local map of the grid within a pitch,
         # :func:`~camkit.target._markers.predict_points`), not its quad's: through a fisheye
-        # or a strong barrel the quad's corner lies 1-7 px off where a corner square was joined to the tag or its
-        # sides bow, and turns the tag's cells away from its code. Only the corners not found
-        # are so placed, and from other tags' corners alone: a wrong fit of one of the tag's
-        # own corners moves none of them, so the reading still tests it (a corner completing
-        # the parallelogram of the tag's own three let a corner fitted 5 px off read as its
-        # tag; corpus view 861, twenty-first session). On the AprilGrid corpus's 1500 views:
-        # 45 right corners kept, on 14 views (10 through a fisheye), none wrong.
+        # or a strong barrel the quad's corner lies 1-7 px off where a corner square was joined
+        # to the tag or its sides bow, and turns the tag's cells away from its code. Only the
+        # corners not found are so placed, and from other tags' corners alone: a wrong fit of
+        # one of the tag's own corners moves none of them, so the reading still tests it (a
+        # corner completing the parallelogram of the tag's own three let a corner fitted 5 px
+        # off read as its tag; corpus view 861, twenty-first session). On the AprilGrid
+        # corpus's 1500 views: 45 right corners kept, on 14 views (10 through a fisheye), none
+        # wrong.
         bad = np.flatnonzero((codes != t_arr[k]) | (turns != 0))
         missing = ~np.isfinite(out[tid[k[bad]]]).all(axis=2)  # (B, 4)
         part = bad[missing.any(axis=1)]
