@@ -344,13 +344,11 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
         # corpus's 1500 views: 45 right corners kept, on 14 views (10 through a fisheye), none
         # wrong.
         bad = np.flatnonzero((codes != t_arr[k]) | (turns != 0))
-        missing = ~np.isfinite(out[tid[k[bad]]]).all(axis=2)  # (B, 4)
-        part = bad[missing.any(axis=1)]
-        if len(part):
-            q, moved = _from_other_tags(grid, out, tid[k[part]], at[k[part]])
+        if len(bad):
+            q, moved = _from_other_tags(grid, obj2, out, tid[k[bad]], at[k[bad]])
             if moved.any():
                 c2, t2 = _read_again(grid, full, q[moved], bend)
-                codes[part[moved]], turns[part[moved]] = c2, t2
+                codes[bad[moved]], turns[bad[moved]] = c2, t2
         drop = tid[k[(codes != t_arr[k]) | (turns != 0)]].ravel()
         out[drop] = np.nan
         sig[drop] = np.nan
@@ -408,14 +406,14 @@ def _read_again(grid: AprilGrid, full: np.ndarray, quads: np.ndarray, bend: floa
     return codes, turns
 
 
-def _from_other_tags(grid: AprilGrid, out: np.ndarray, tid: np.ndarray,
+def _from_other_tags(grid: AprilGrid, obj2: np.ndarray, out: np.ndarray, tid: np.ndarray,
                      at: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The tags ``tid`` (P, 4 point ids) at ``at`` (P, 4, 2) with each corner not found in
     ``out`` put where the found corners of the other tags put it
-    (:func:`~camkit.target._markers.predict_points`, none of the tag's own); and which tags had
-    a corner so placed (where too few found corners are around, ``at``'s stays)."""
+    (:func:`~camkit.target._markers.predict_points` on the grid's points ``obj2`` (N, 2), none
+    of the tag's own); and which tags had a corner so placed (none where all four are found;
+    where too few found corners are around one, ``at``'s stays)."""
     seen = np.flatnonzero(np.isfinite(out).all(axis=1))
-    obj2 = grid.object_points()[:, :2]
     flat = tid.ravel()
     others = ~(seen[None, :, None] == tid[:, None, :]).any(axis=2)  # (P, S): not the tag's own
     usable = np.repeat(others, 4, axis=0)  # (4P, S), a row per corner
