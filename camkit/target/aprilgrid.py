@@ -32,7 +32,10 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
    tag with corner squares joined at some of its corners (a blurred junction joins them),
    then through a lens (Fitzgibbon's division model about the image's middle, at a few
    strengths: through a fisheye a tag's sides bow and the homography of its corners misses
-   its middle cells);
+   its middle cells); where fewer than four tags are confirmed (step 2), the quads whose
+   corners are X-junctions and whose border is a tag's are read too (small blurred tags
+   join their corner squares in every threshold, but their corners stay sharp saddles), and
+   the grid is found from both readings where that finds more corners;
 2. the cells read against the family with its error correction, ids checked against the grid
    and confirmed by a neighbour (one homography through both tags' corners, undistorted by
    the weakest strength under which the most tags are confirmed; the neighbours'
@@ -89,13 +92,17 @@ from camkit.target._markers import (
     BENDS,
     TypicalSigma,
     _read_bent,
+    _rims,
+    add_marker,
     apart_from_found,
     confirm_markers,
     consistent_points,
     drop_poor_fits,
     find_markers,
     fit_inside,
+    image_noise,
     is_x_corner,
+    junction_quads,
     lattice_rounds,
     narrowest_side,
     narrowest_width,
@@ -252,19 +259,34 @@ class AprilGrid(Target):
 
 
 def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
-    N = grid.n_points
     full = _to_grey(image, lazy=True)
-    found, factor, _ = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
+    found, factor, level = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
+    confirmed, bend = _confirmed(grid, found, factor, full.shape)
+    det = _from_tags(grid, full, found, factor, confirmed, bend)
+    if len(confirmed) >= _JUNCTIONS_BELOW:
+        return det
+    # Too few tags read from the threshold's quads: the tags bounded by X-junctions read as
+    # well, and the grid found from both where that finds more corners (each passes the same
+    # checks). Not the one result from both: a tag confirmed is held to the reading again,
+    # where its corners grown from the others are not (corpus view 228: two tags that the
+    # junctions let be confirmed read as no code through their exact corners, 8 corners).
+    more = {m: list(q) for m, q in found.items()}
+    _add_junction_tags(grid, more, level, factor, full)
+    if len(more) == len(found):
+        return det
+    confirmed, bend = _confirmed(grid, more, factor, full.shape)
+    det2 = _from_tags(grid, full, more, factor, confirmed, bend)
+    return det2 if det2.n_found > det.n_found else det
+
+
+def _from_tags(grid: AprilGrid, full: np.ndarray, found: dict[int, list[np.ndarray]], factor: int,
+               confirmed: list[int], bend: float) -> Detection:
+    """The grid's corners from the tags read (``found``, as
+    :func:`~camkit.target._markers.find_markers` gives them) and those of them ``confirmed``
+    under the lens strength ``bend``."""
+    N = grid.n_points
     obj = grid.tag_corners()
     places = grid.tag_places()
-    # The lens: the strength (:func:`~camkit.target._markers.undistort`) under which the most
-    # tags are confirmed, the weakest of those (a fisheye's tags off one homography by more
-    # than the test allows, two by two).
-    confirmed, bend = [], 0.0
-    for b in (0.0, *BENDS):
-        c, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor, b, full.shape)
-        if len(c) > len(confirmed):
-            confirmed, bend = c, b
     if not confirmed:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
                                       f"({grid.family})")
@@ -383,6 +405,47 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(tags)} tags (window {window} px)")
+
+
+#: Where fewer tags than this are confirmed from the threshold's quads, tags bounded by
+#: X-junctions (:func:`~camkit.target._markers.junction_quads`) are read as well.
+_JUNCTIONS_BELOW = 4
+
+
+def _confirmed(grid: AprilGrid, found: dict[int, list[np.ndarray]], factor: int,
+               shape: tuple[int, ...]) -> tuple[list[int], float]:
+    """The tags of ``found`` confirmed by their neighbours, and the lens: the strength
+    (:func:`~camkit.target._markers.undistort`) under which the most are confirmed, the weakest
+    of those (a fisheye's tags off one homography by more than the test allows, two by two)."""
+    obj, places = grid.tag_corners(), grid.tag_places()
+    confirmed: list[int] = []
+    bend = 0.0
+    for b in (0.0, *BENDS):
+        c, _, _ = confirm_markers(found, obj, places, 1.0 + grid.tag_spacing, factor, b, shape)
+        if len(c) > len(confirmed):
+            confirmed, bend = c, b
+    return confirmed, bend
+
+
+def _add_junction_tags(grid: AprilGrid, found: dict[int, list[np.ndarray]], level: np.ndarray, factor: int,
+                       full: np.ndarray) -> None:
+    """Adds to ``found`` the tags read in the quads of X-junctions of ``level`` (the finest
+    pyramid level read, ``factor`` times coarser than ``full``) that have a tag's border, read
+    as :func:`_read_again` reads (through the lens strengths, then at the cells' middles).
+    On AprilGrid corpus views 926 and 1117 (tags of 20-26 px, blurred), where the threshold's
+    quads read 0 and 1 tags, 15 and 14 tags read so, every one within a pixel of its place."""
+    q = junction_quads(level)
+    if not len(q):
+        return
+    n_cells = grid.aruco.marker_size + 2 * BORDER_BITS
+    contrast = max(0.15, 3.0 * image_noise(full) / factor)
+    q = q[_rims(level, q, n_cells, BORDER_BITS, contrast)]
+    if not len(q):
+        return
+    codes, turns = _read_again(grid, level, q, 0.0)
+    for quad, code, k in zip(q, codes, turns, strict=True):
+        if code >= 0:
+            add_marker(found, int(code), (quad[(np.arange(4) - k) % 4] + 0.5) * factor - 0.5)
 
 
 def _read_again(grid: AprilGrid, full: np.ndarray, quads: np.ndarray, bend: float) -> tuple[np.ndarray, np.ndarray]:

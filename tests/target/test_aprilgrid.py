@@ -395,6 +395,34 @@ def test_a_tag_read_again_takes_its_missing_corners_from_the_other_tags_not_its_
     _check_corpus_view(975, max_err=0.5, max_missed=15)
 
 
+def test_small_blurred_tags_are_read_in_the_quads_of_their_junctions():
+    """Corpus view 1117 (pinhole, 7 x 6 tags of 20-26 px, blurred, 160 eligible corners): the
+    threshold joins each tag with its corner squares, its quads lie 8-46 px off, one tag read
+    and nothing was found. The tags' corners are sharp X-junctions: quads of junctions with a
+    tag's border read 14 tags, and the grid grows from them."""
+    _check_corpus_view(1117, max_err=0.3, max_missed=20)
+
+
+def test_every_tag_of_a_small_blurred_grid_is_a_quad_of_junctions():
+    """:func:`junction_quads` on corpus view 1117: each of the 40 tags' four corners is a quad
+    of it, within 0.3 px (saddle points), in the image's clockwise order; the quads are few
+    beside the pairs of junctions (a few per tag)."""
+    from benchmarks.aprilgrid_corpus import view
+    from camkit.target._markers import junction_quads
+    from camkit.target.checkerboard import _to_grey
+
+    grid, _, _, _, img, truth, _ = view(1117)
+    q = junction_quads(_to_grey(img, lazy=True).dense())
+    tags = truth.corners_px[grid.tag_point_ids()]  # (40, 4, 2), the code's order: clockwise here
+    # Each tag against every quad in each of its four turns: the largest corner distance.
+    d = np.stack([np.hypot(*(np.roll(q, k, axis=1)[:, None] - tags[None]).transpose(3, 0, 1, 2)).max(axis=2)
+                  for k in range(4)]).min(axis=0)  # (quads, tags)
+    assert (d.min(axis=0) < 0.3).all(), np.sort(d.min(axis=0))[-5:]
+    assert len(q) <= 4 * len(tags), len(q)
+    e1, e2 = q[:, 1] - q[:, 0], q[:, 3] - q[:, 0]
+    assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0).all()
+
+
 def test_a_tags_exact_corners_are_not_taken_from_a_neighbour_read_with_its_corner_square():
     """Corpus view 1063 (pinhole, 5 x 7 tags of 40 px seen aslant, noise): nine tags were read
     with a corner square joined at some corners (their quads 4-9 px off there). Where one
