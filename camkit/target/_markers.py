@@ -306,7 +306,7 @@ def junction_quads(g: np.ndarray) -> np.ndarray:
     checkerboard detector's X-corners, refined at their saddle points): an AprilGrid's tags,
     whose corners are where they meet their corner squares. Where tags are small and blurred,
     the dark regions of a threshold join each tag with its squares and bound neither (AprilGrid
-    corpus views 926 and 1117, tags of 20-26 px: quads 8-46 px off, 0 and 1 tag read) while
+    corpus views 926 and 1117, tags of 20-26 px: quads 8-46 px off, 3 and 1 tags read) while
     the junctions are sharp saddles. Each junction with two of its
     :data:`_JUNCTION_NEIGHBOURS` nearest as two sides, 40 to 140 degrees apart and at most 2.5
     times as long one as the other, makes a quad where a junction lies at the parallelogram's

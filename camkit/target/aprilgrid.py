@@ -272,7 +272,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # junctions let be confirmed read as no code through their exact corners, 8 corners).
     more = {m: list(q) for m, q in found.items()}
     _add_junction_tags(grid, more, level, factor, full)
-    if len(more) == len(found):
+    if len(more) == len(found):  # no tag read that the threshold's quads did not read
         return det
     confirmed, bend = _confirmed(grid, more, factor, full.shape)
     det2 = _from_tags(grid, full, more, factor, confirmed, bend)
@@ -433,7 +433,7 @@ def _add_junction_tags(grid: AprilGrid, found: dict[int, list[np.ndarray]], leve
     pyramid level read, ``factor`` times coarser than ``full``) that have a tag's border, read
     as :func:`_read_again` reads (through the lens strengths, then at the cells' middles).
     On AprilGrid corpus views 926 and 1117 (tags of 20-26 px, blurred), where the threshold's
-    quads read 0 and 1 tags, 15 and 14 tags read so, every one within a pixel of its place."""
+    quads read 3 and 1 tags, 15 and 14 tags read so, every one within a pixel of its place."""
     q = junction_quads(level)
     if not len(q):
         return
