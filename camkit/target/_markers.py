@@ -269,6 +269,14 @@ MIN_CELL_PX = 1.25
 _CUT_REACH = 3.0
 
 
+def _light_axis(v: np.ndarray) -> np.ndarray:
+    """The angle (radians, image frame) of the axis through the light sectors of X-junctions
+    whose profiles are ``v`` (K, M samples on a circle from the +x axis): the profile's second
+    harmonic."""
+    ang = np.arange(v.shape[1]) * 2.0 * np.pi / v.shape[1]
+    return 0.5 * np.angle((v * np.exp(2j * ang)).sum(axis=1))
+
+
 def _junction_cuts(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Pixels (rows, columns) that part the dark regions meeting at the X-junctions of ``g``
     (the checkerboard detector's X-corners): a line :data:`_CUT_REACH` either way of each
@@ -279,8 +287,7 @@ def _junction_cuts(g: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     joins its squares into chains (corpus views 186 and 273: 2 of 15 and 0 of 9 tags read;
     11 and 9 once cut)."""
     pts, v = _x_corners(np.ascontiguousarray(g, dtype=np.float64))[2:4]
-    ang = np.arange(v.shape[1]) * 2.0 * np.pi / v.shape[1]
-    axis = 0.5 * np.angle((v * np.exp(2j * ang)).sum(axis=1))
+    axis = _light_axis(v)
     t = np.arange(-_CUT_REACH, _CUT_REACH + 0.25, 0.5)
     x = np.rint(pts[:, :1] + t * np.cos(axis)[:, None]).astype(np.int64).ravel()
     y = np.rint(pts[:, 1:] + t * np.sin(axis)[:, None]).astype(np.int64).ravel()
@@ -318,8 +325,7 @@ def junction_quads(g: np.ndarray) -> np.ndarray:
         return none
     ref, sg = refine_patches(g, pts, 2, 1.0)
     ok = np.isfinite(sg) & (np.hypot(*(ref - pts).T) <= 1.5)
-    ang = np.arange(v.shape[1]) * 2.0 * np.pi / v.shape[1]
-    dark = 0.5 * np.angle((v[ok] * np.exp(2j * ang)).sum(axis=1)) + 0.5 * np.pi
+    dark = _light_axis(v[ok]) + 0.5 * np.pi
     pts = ref[ok]
     if len(pts) < 4:
         return none

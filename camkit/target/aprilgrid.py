@@ -260,7 +260,8 @@ class AprilGrid(Target):
 
 def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     full = _to_grey(image, lazy=True)
-    found, factor, level = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing)
+    noise = image_noise(full)
+    found, factor, level = find_markers(full, grid.aruco, BORDER_BITS, corner_squares=grid.tag_spacing, noise=noise)
     confirmed, bend = _confirmed(grid, found, factor, full.shape)
     det = _from_tags(grid, full, found, factor, confirmed, bend)
     if len(confirmed) >= _JUNCTIONS_BELOW:
@@ -271,7 +272,7 @@ def _detect(grid: AprilGrid, image: np.ndarray) -> Detection:
     # where its corners grown from the others are not (corpus view 228: two tags that the
     # junctions let be confirmed read as no code through their exact corners, 8 corners).
     more = {m: list(q) for m, q in found.items()}
-    _add_junction_tags(grid, more, level, factor, full)
+    _add_junction_tags(grid, more, level, factor, noise)
     if len(more) == len(found):  # no tag read that the threshold's quads did not read
         return det
     confirmed, bend = _confirmed(grid, more, factor, full.shape)
@@ -428,9 +429,10 @@ def _confirmed(grid: AprilGrid, found: dict[int, list[np.ndarray]], factor: int,
 
 
 def _add_junction_tags(grid: AprilGrid, found: dict[int, list[np.ndarray]], level: np.ndarray, factor: int,
-                       full: np.ndarray) -> None:
+                       noise: float) -> None:
     """Adds to ``found`` the tags read in the quads of X-junctions of ``level`` (the finest
-    pyramid level read, ``factor`` times coarser than ``full``) that have a tag's border, read
+    pyramid level read, ``factor`` times coarser than the image, whose noise is ``noise``)
+    that have a tag's border (as :func:`~camkit.target._markers.find_markers` tests it), read
     as :func:`_read_again` reads (through the lens strengths, then at the cells' middles).
     On AprilGrid corpus views 926 and 1117 (tags of 20-26 px, blurred), where the threshold's
     quads read 3 and 1 tags, 15 and 14 tags read so, every one within a pixel of its place."""
@@ -438,7 +440,7 @@ def _add_junction_tags(grid: AprilGrid, found: dict[int, list[np.ndarray]], leve
     if not len(q):
         return
     n_cells = grid.aruco.marker_size + 2 * BORDER_BITS
-    contrast = max(0.15, 3.0 * image_noise(full) / factor)
+    contrast = max(0.15, 3.0 * noise / factor)
     q = q[_rims(level, q, n_cells, BORDER_BITS, contrast)]
     if not len(q):
         return
