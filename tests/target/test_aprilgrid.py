@@ -423,6 +423,21 @@ def test_every_tag_of_a_small_blurred_grid_is_a_quad_of_junctions():
     assert (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0] > 0).all()
 
 
+def test_noise_read_through_its_junctions_is_not_a_grid():
+    """An image of blurred noise has saddles everywhere and no tag: the junction reading
+    (taken where fewer than four tags are confirmed) makes its quads and reads them, and
+    the grid is not found, with the reason."""
+    from scipy import ndimage
+
+    from camkit.target._markers import junction_quads
+
+    noise = ndimage.gaussian_filter(np.random.default_rng(3).normal(size=(240, 320)), 1.5)
+    img = np.clip(0.5 + 2.0 * noise, 0.0, 1.0)
+    assert len(junction_quads(img)) > 0  # the junction reading has quads to read
+    det = AprilGrid.example().detect(img)
+    assert not det.found and det.n_found == 0 and det.message.startswith("not found"), det.message
+
+
 def test_a_tags_exact_corners_are_not_taken_from_a_neighbour_read_with_its_corner_square():
     """Corpus view 1063 (pinhole, 5 x 7 tags of 40 px seen aslant, noise): nine tags were read
     with a corner square joined at some corners (their quads 4-9 px off there). Where one
