@@ -415,11 +415,15 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # markers, which passes fewer tests: one marker's blurred quad, its corner read 3.6 px
     # off, can predict the chessboard corner onto the white margin beside it, where the fit
     # finds a saddle that passes the circle's tests (seed 55 of the corpus: 6.8 px off,
-    # squares of 20 px). Dropped here, such a corner is tried again from its neighbours.
+    # squares of 20 px). Dropped here, such a corner is tried again from its neighbours (and
+    # where their prediction is too near the image's edge for growth's coarse search, from its
+    # own fit: _grow).
+    fitted = out.copy()
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir)
-    _grow(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
+    _grow(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical,
+          np.where(np.isfinite(out), np.nan, fitted))
     drop_poor_fits(out, sig, typical, win_of, sm_of, chir, res_of)
-    _recover_symmetric(board, full, out, sig, noise, {m: found[m][0] for m in confirmed})
+    _recover_symmetric(board, full, factor, out, sig, noise, {m: found[m][0] for m in confirmed})
     retry &= ~np.isfinite(out[cand]).all(axis=1)
     if retry.any():
         fit([(r, s0, retry & (win == r)) for r in np.unique(win[retry]).tolist()])
@@ -439,7 +443,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
 
 
 
-def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, noise: float,
+def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, noise: float,
                        quads: dict[int, np.ndarray]) -> None:
     """Step 6 of the detection: the corners still missing beside found ones, placed at their
     point of symmetry (the checkerboard's step 9, :func:`camkit.target.checkerboard._symmetric`),
@@ -457,7 +461,15 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
     symmetric; the image's noise where higher) plus :data:`_SYM_MISFIT` (a marker's bits in
     reach, an occluder, another junction make it asymmetric), its sigma is at most
     :data:`_MAX_RECOVERED_SIGMA`, it is an X-junction with its label's colours on a circle
-    clear of the markers, and it lies on no other corner."""
+    clear of the markers, and it lies on no other corner.
+
+    The symmetric point is sought from the map's centre; where that search fails (leaves the
+    image's patch, or does not converge), it is sought again from the saddle fit nearest the
+    centre (window as step 4's, full smoothing), where that lies within 0.15 of a square of it,
+    and held to the same tests. On a sheared board the Gauss-Newton steps of the point-symmetry
+    have a narrow basin across the slivers: corpus view 1150's corner 1 (fisheye, 70 degrees
+    from square on, noise) had its map's centre 2.3 px off and its search failed; from the
+    saddle fit (0.6 px off, refused by its sigma) it ends 0.05 px from the truth."""
     nx = board.squares_x - 1
     margin = 0.5 * (board.square - board.marker) / board.square
     box = margin + board.marker / board.square / (board.aruco.marker_size + 2)  # the border's inner edge
@@ -475,6 +487,21 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
         if got is None:
             return
         cand, pos, cov, wres, centre, du, dv, size = got
+        # Those whose search failed, again from the saddle nearest the map's centre.
+        again = np.flatnonzero(~np.isfinite(pos).all(axis=1))
+        if len(again):
+            clear = _clearance(board, cand[again], du[again], dv[again])
+            win, _ = _windows(size[again], clear, factor)
+            q = np.full((len(again), 2), np.nan)
+            for r in np.unique(win):
+                k = win == r
+                q[k] = refine_patches(full, centre[again[k]], int(r), _FULL_SMOOTHING * factor)[0]
+            near = np.isfinite(q).all(axis=1) & (np.hypot(*(q - centre[again]).T) <= 0.15 * size[again])
+            got2 = _symmetric_points(full, out, nx, spacing, reach, cand[again[near]], centre_known=False,
+                                     board=board, quads=quads, start=q[near])
+            if got2 is not None:
+                at = again[near][np.isin(cand[again[near]], got2[0])]
+                pos[at], cov[at], wres[at] = got2[1], got2[2], got2[3]
         if level is None:
             # The board's own asymmetry: its found corners (an even sample of them), placed the
             # same way.
@@ -509,12 +536,14 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, out: np.ndarray, sig: n
 
 def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float, reach: float, idx: np.ndarray,
                       centre_known: bool, board: Charuco | None = None,
-                      quads: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...] | None:
+                      quads: dict[int, np.ndarray] | None = None,
+                      start: np.ndarray | None = None) -> tuple[np.ndarray, ...] | None:
     """The corners ``idx`` of the lattice ``out`` (a row of ``nx``), each at its point of
     symmetry out to ``reach`` squares on its neighbours' local map (with the corner itself
-    where ``centre_known``), started from the map's centre: ``(which of idx, place, covariance
-    (xx, xy, yy) per unit noise, residuals' noise, the map's centre, a square's steps along
-    the board's x and y, the smaller step's length)``, for the corners with a map whose
+    where ``centre_known``), started from the map's centre (or from ``start``, (len(idx), 2),
+    each within 0.15 of a square of it): ``(which of idx, place, covariance (xx, xy, yy) per
+    unit noise, residuals' noise, the map's centre, a square's steps along the board's x and
+    y, the smaller step's length)``, for the corners with a map whose
     samples lie inside the image and squares of 6 px or more; None where none has. With the
     ``board`` and its confirmed markers' ``quads``, a corner with too few neighbours for a
     map has one from its neighbours and its markers' corners (:func:`_marker_maps`)."""
@@ -533,13 +562,14 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
     if not len(sel):
         return None
     a, b, centre, du, dv, size, extent = a[sel], b[sel], centre[sel], du[sel], dv[sel], size[sel], extent[sel]
+    p0 = centre if start is None else start[sel]
     half = int(np.ceil(extent.max()))
-    mosaic, shift = _smoothed_patches(full, centre, half, _SYM_SMOOTHING)
+    mosaic, shift = _smoothed_patches(full, p0, half, _SYM_SMOOTHING)
     pos = np.empty((len(sel), 2))
     cov = np.empty((len(sel), 3))
     wres = np.empty(len(sel))
     detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
-                                   np.ascontiguousarray(centre + shift), np.ascontiguousarray(a),
+                                   np.ascontiguousarray(p0 + shift), np.ascontiguousarray(a),
                                    np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
                                    20, 1e-3, pos, cov, wres)
     return idx[sel], pos - shift, cov, wres, centre, du, dv, size
@@ -963,7 +993,8 @@ def _measured_steps(board: Charuco, out: np.ndarray, cand: np.ndarray, q: np.nda
 def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
                    others: np.ndarray, u: np.ndarray, v: np.ndarray, win_of: np.ndarray,
-                   sm_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma) -> None:
+                   sm_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma,
+                   start_at: np.ndarray | None = None) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
@@ -980,7 +1011,9 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     fit's sigma at most :data:`_SIGMA_RATIO` times ``typical`` for its window (recorded in
     ``win_of``), or its residuals (recorded in ``res_of``) at most that times the typical ones
     with the sigma the image's noise gives the fit at most a quarter of a pixel
-    (:meth:`TypicalSigma.passes`, :func:`~camkit.target._markers.noise_sigma`)."""
+    (:meth:`TypicalSigma.passes`, :func:`~camkit.target._markers.noise_sigma`). ``start_at``
+    (K, 2; NaN where none): where given, the fine fit starts there, with no coarse search (the
+    tests still measure from ``pred``)."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     clear = _clearance(board, cand, u, v)
@@ -990,6 +1023,10 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     rc = np.clip(np.minimum(np.round(size_l / 5.0), np.floor(clear / factor - 2.5 * np.maximum(1.5, size_l / 12.0))),
                  0, 25).astype(int)
     start = np.where((rc < 2)[:, None], pred, np.nan)
+    if start_at is not None:
+        given = np.isfinite(start_at).all(axis=1)
+        rc[given] = 0
+        start[given] = start_at[given]
     for r in np.unique(rc[rc >= 2]):
         k = np.flatnonzero(rc == r)
         sgm = max(1.5, float(np.median(size_l[k])) / 12.0)
@@ -1035,11 +1072,20 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
 
 def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out: np.ndarray,
           sig: np.ndarray, win_of: np.ndarray, sm_of: np.ndarray, res_of: np.ndarray,
-          typical: TypicalSigma) -> None:
+          typical: TypicalSigma, dropped: np.ndarray | None = None) -> None:
     """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
     round: each predicted from the found corners beside it on the board (:func:`extend_lattice`),
     refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
-    tried again only once more of its neighbours are found. Where the markers are too small
+    tried again only once more of its neighbours are found.
+
+    ``dropped`` (N, 2; NaN where none): the fits of corners beside markers that the sigma test
+    dropped before growth. Where growth's coarse search would reach past the image's edge, such
+    a corner is refined from that fit instead of not at all, and held to growth's tests (its
+    residuals may excuse its sigma there). Growth's prediction is a parallelogram of its
+    neighbours, extrapolated at the board's corner: through a barrel lens at the image's edge
+    it fell 6 px off (corpus view 1164, corner 36, squares of 57-75 px), and the fit from
+    there ran off the image; the dropped fit was 0.03 px from the truth, its sigma 2.04
+    times the typical one where its residuals were 1.44 times. Where the markers are too small
     or blurred to read, the squares still carry the corners' labels from those read."""
     nx, ny = board.squares_x - 1, board.squares_y - 1
     H, W = full.shape
@@ -1053,14 +1099,18 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
         # The coarse search's window and reach inside the image (its edges replicated beyond
-        # would make a saddle there).
+        # would make a saddle there); elsewhere only a dropped corner, from its own fit.
         edge = 0.35 * size + 2
-        inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4) & (pred[:, 0] >= edge)
-                  & (pred[:, 0] <= W - 1 - edge) & (pred[:, 1] >= edge) & (pred[:, 1] <= H - 1 - edge))
+        coarse = ((pred[:, 0] >= edge) & (pred[:, 0] <= W - 1 - edge) & (pred[:, 1] >= edge)
+                  & (pred[:, 1] <= H - 1 - edge))
+        start = np.full((len(cand), 2), np.nan) if dropped is None else dropped[cand]
+        start[coarse] = np.nan
+        inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4)
+                  & (coarse | np.isfinite(start).all(axis=1)))
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
-                       others[inside], u[inside], v[inside], win_of, sm_of, res_of, typical)
+                       others[inside], u[inside], v[inside], win_of, sm_of, res_of, typical, start[inside])
 
 
 #: A corner is placed from the homography of the found corners around it
