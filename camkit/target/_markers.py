@@ -126,20 +126,34 @@ def distort(u: np.ndarray, bend: float, shape: tuple[int, ...]) -> np.ndarray:
 _RIM_TO_REFINE = 0.6
 
 
+#: :func:`read_markers_rims` reads at most this many quads at once.
+_READ_CHUNK = 4096
+
+
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
                       src: np.ndarray | None = None, rim_contrast: float = 0.15,
                       bend: float = 0.0,
                       middles: tuple[float, ...] = (0.3, 0.5, 0.7)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(code ids, turns, rimmed)`` of the markers in ``quads`` (K, 4, 2), clockwise corners;
     id -1 where a quad holds no code; ``rimmed`` where its border is mostly dark
-    (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. All
+    (:data:`_RIM_TO_REFINE`) against a margin ``rim_contrast`` lighter, as a marker's. The
     quads at once: their homographies from the unit square, one sampling of every cell's middle
     points (3 x 3 by default: at ``middles`` of the cell each way; their mean read) and of the
     white margin around each. The code's cells are inside a black border ``border`` cells
     wide (1 for ArUco, 2 for Kalibr's AprilTags). ``src`` (K, 4, 2): where each quad's corners
     lie in the marker's cells (the marker spans ``[0, n]^2``), where not on the marker's own
     corners. ``bend``: where not 0, the markers are read through a lens of that strength
-    (:func:`undistort`: a marker's cells lie on the homography of its undistorted corners)."""
+    (:func:`undistort`: a marker's cells lie on the homography of its undistorted corners).
+
+    Read :data:`_READ_CHUNK` quads at a time (each quad's reading is its own): a cluttered
+    12 MP image gives some hundred thousand quads to read again (an AprilGrid's fifteen ways
+    of joined corner squares), whose thousand samples each would otherwise be held at once."""
+    if len(quads) > _READ_CHUNK:
+        parts = [read_markers_rims(g, quads[i:i + _READ_CHUNK], d, border,
+                                   None if src is None else src[i:i + _READ_CHUNK], rim_contrast, bend, middles)
+                 for i in range(0, len(quads), _READ_CHUNK)]
+        ids, turns, rimmed = (np.concatenate(p) for p in zip(*parts, strict=True))
+        return ids, turns, rimmed
     K = len(quads)
     n = d.marker_size + 2 * border
     unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])

@@ -523,3 +523,35 @@ def test_corners_at_a_fisheyes_rim_the_local_check_cannot_follow_are_put_back_by
     radial distortion about a free centre, trusted where it predicts the outer corners it
     was not fitted on) puts back those it predicts within half a pixel."""
     _check_corpus_view(1304, max_err=0.5, max_missed=2)
+
+
+def test_quads_read_in_chunks_read_as_all_at_once(monkeypatch):
+    """Each quad's reading is its own: read a few at a time (as a cluttered image's hundred
+    thousand quads are, to bound the samples held at once), the codes, turns and rims are
+    those of one reading of all of them (the tags' own quads, quads a few pixels off them,
+    one that is not finite), straight, through a lens and with the corners placed in the
+    tag's cells."""
+    from camkit.target import _markers
+
+    g = AprilGrid.example()
+    img, truth = render_target(CAM, _view(g, CAM, (0.3, -0.2, 0.1)), g)
+    tags = truth.corners_px[g.tag_point_ids()]  # (T, 4, 2)
+    T = len(tags)
+    quads = np.concatenate([tags, tags, tags + np.random.default_rng(3).normal(0, 3, tags.shape),
+                            np.full((1, 4, 2), np.nan)])
+    n = g.aruco.marker_size + 4
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    # The second copy of each tag with its corners placed a quarter turn round: it reads turned.
+    src = np.concatenate([np.broadcast_to(unit, tags.shape), np.broadcast_to(np.roll(unit, 1, axis=0), tags.shape),
+                          np.broadcast_to(unit, (T + 1, 4, 2))])
+    for kw in ({}, {"bend": -0.5}, {"src": src}):
+        whole = _markers.read_markers_rims(img, quads, g.aruco, 2, **kw)
+        monkeypatch.setattr(_markers, "_READ_CHUNK", 7)
+        parts = _markers.read_markers_rims(img, quads, g.aruco, 2, **kw)
+        monkeypatch.setattr(_markers, "_READ_CHUNK", 4096)
+        for a, b in zip(whole, parts, strict=True):
+            np.testing.assert_array_equal(a, b)
+        # Not a comparison of empty readings: the tags' own quads read as their ids.
+        np.testing.assert_array_equal(parts[0][:T], np.arange(T))
+        assert parts[0][-1] == -1
+    assert (parts[1][T:2 * T] != parts[1][:T]).all()  # placed a quarter turn round: turned
