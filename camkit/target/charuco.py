@@ -572,6 +572,12 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
                                    np.ascontiguousarray(p0 + shift), np.ascontiguousarray(a),
                                    np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
                                    20, 1e-3, pos, cov, wres)
+    if start is not None:
+        # Each patch holds the samples of points within 0.15 of a square of its start
+        # (``extent``); one that ends farther from a start that is not the map's centre (which
+        # the caller's test bounds) read pixels of the next patch.
+        with np.errstate(invalid="ignore"):
+            pos[np.hypot(*(pos - shift - p0).T) > 0.15 * size] = np.nan
     return idx[sel], pos - shift, cov, wres, centre, du, dv, size
 
 
@@ -1076,7 +1082,8 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
     """Add the chessboard corners next to found ones (``out``, NaN where not found), round by
     round: each predicted from the found corners beside it on the board (:func:`extend_lattice`),
     refined and tested as the corners beside markers (:func:`_place_corners`). A corner is
-    tried again only once more of its neighbours are found.
+    tried again only once more of its neighbours are found. Where the markers are too small
+    or blurred to read, the squares still carry the corners' labels from those read.
 
     ``dropped`` (N, 2; NaN where none): the fits of corners beside markers that the sigma test
     dropped before growth. Where growth's coarse search would reach past the image's edge, such
@@ -1084,9 +1091,8 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
     residuals may excuse its sigma there). Growth's prediction is a parallelogram of its
     neighbours, extrapolated at the board's corner: through a barrel lens at the image's edge
     it fell 6 px off (corpus view 1164, corner 36, squares of 57-75 px), and the fit from
-    there ran off the image; the dropped fit was 0.03 px from the truth, its sigma 2.04
-    times the typical one where its residuals were 1.44 times. Where the markers are too small
-    or blurred to read, the squares still carry the corners' labels from those read."""
+    there ran towards the edge; the dropped fit was 0.03 px from the truth, its sigma 2.04
+    times the typical one where its residuals were 1.44 times."""
     nx, ny = board.squares_x - 1, board.squares_y - 1
     H, W = full.shape
     s = board.square
