@@ -36,6 +36,8 @@ def make_normal_blocks(L: int):
                     jl[k] = Jl[n, a, k]
                 ra = r[n, a] * wn
                 for i in range(G):
+                    if Jg[n, a, i] == 0.0:  # sparse rows (a camera's own intrinsics, a fixed camera): adds nothing
+                        continue
                     ji = Jg[n, a, i] * wn
                     gg[i] += Jg[n, a, i] * ra
                     for j in range(i, G):
@@ -98,6 +100,27 @@ def dlt_normal(X: np.ndarray, u: np.ndarray):  # pragma: no cover - numba
             for k in range(9):
                 M[j, k] += aj * a[k] + bj * b[k]
     return M, Tx, Tu, True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def dlt_normal_many(X: np.ndarray, u: np.ndarray, start: np.ndarray):  # pragma: no cover - numba
+    """:func:`dlt_normal` for many point sets at once: set v is rows ``start[v]:start[v+1]``
+    of the stacked ``X`` and ``u``. Returns ``(M (V, 9, 9), Tx (V, 3, 3), Tu (V, 3, 3), ok
+    (V,))``; a set of fewer than 4 points is not ok."""
+    V = start.shape[0] - 1
+    M = np.zeros((V, 9, 9))
+    Tx = np.zeros((V, 3, 3))
+    Tu = np.zeros((V, 3, 3))
+    ok = np.zeros(V, dtype=np.bool_)
+    for v in range(V):
+        a, b = start[v], start[v + 1]
+        if b - a < 4:
+            for i in range(3):
+                Tx[v, i, i] = 1.0
+                Tu[v, i, i] = 1.0
+            continue
+        M[v], Tx[v], Tu[v], ok[v] = dlt_normal(X[a:b], u[a:b])
+    return M, Tx, Tu, ok
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

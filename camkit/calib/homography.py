@@ -56,6 +56,37 @@ def find_homography(plane_points: Any, pixels: Any, *, refine: bool = True) -> n
     return H
 
 
+def dlt_homographies(plane_points: list[np.ndarray], pixels: list[np.ndarray]) -> list[np.ndarray | None]:
+    """:func:`find_homography` without refinement for many views at once (one pass of the
+    normal matrices, one stacked eigendecomposition): each view's ``H``, or None where
+    ``find_homography`` would raise (fewer than 4 points, coincident or degenerate points).
+    The inputs are already validated float arrays, (N_v, 2) each (a caller's own)."""
+    n = len(plane_points)
+    if n == 0:
+        return []
+    counts = np.array([len(x) for x in plane_points])
+    start = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    X = np.ascontiguousarray(np.concatenate(plane_points), dtype=np.float64).reshape(-1, 2)
+    u = np.ascontiguousarray(np.concatenate(pixels), dtype=np.float64).reshape(-1, 2)
+    M, Tx, Tu, ok = calib_kernels.dlt_normal_many(X, u, start)
+    lam, vec = np.linalg.eigh(M)
+    Hn = vec[:, :, 0].reshape(n, 3, 3)
+    H = np.linalg.solve(Tu, Hn @ Tx)
+    out: list[np.ndarray | None] = []
+    for v in range(n):
+        if not ok[v]:
+            out.append(None)
+        elif lam[v, 1] < 1e-10 * lam[v, 8]:  # near-degenerate: decided on A's SVD, as find_homography does
+            try:
+                out.append(find_homography(X[start[v]:start[v + 1]], u[start[v]:start[v + 1]], refine=False))
+            except EstimationError:
+                out.append(None)
+        else:
+            h = H[v]
+            out.append(h / h[2, 2] if abs(h[2, 2]) > 1e-12 * np.abs(h).max() else h / np.linalg.norm(h))
+    return out
+
+
 def _dlt_svd(X: np.ndarray, u: np.ndarray, Tx: np.ndarray, Tu: np.ndarray) -> np.ndarray:
     """The normalised DLT's solution from the SVD of A, with the degeneracy test."""
     n = len(X)

@@ -25,7 +25,7 @@ import numpy as np
 from camkit._kernels import calib as calib_kernels
 from camkit._validate import as_positive_int, check_choice
 from camkit.calib.calibrate import CalibrationResult, calibrate, held_parameters
-from camkit.calib.homography import find_homography
+from camkit.calib.homography import dlt_homographies
 from camkit.calib.refine import Linearization, LMOptions, solve
 from camkit.calib.views import pose_jacobian, reject_outliers
 from camkit.calib.zhang import poses_from_homographies
@@ -231,6 +231,7 @@ class _RigProblem:
         self.classes, self.sizes, self.free, self.reference = classes, sizes, free, reference
         self.n_groups = n_groups
         self.blocks = blocks  # (camera, group, object points in use, pixels in use)
+        self._held: dict[int, tuple[float, CameraModel]] = {}
         gn: list[str] = []
         self.intr_off, self.pose_off = [], []
         for c, cls in enumerate(classes):
@@ -251,6 +252,9 @@ class _RigProblem:
             img = np.concatenate([b[3] for b in mine])
             grp = np.repeat(np.array([b[1] for b in mine], dtype=np.int64), [len(b[2]) for b in mine])
             self.per_cam.append((obj, img, grp))
+        used = [d for d in self.per_cam if d is not None]
+        self.n_obs = sum(len(d[0]) for d in used)
+        self.group = np.concatenate([d[2] for d in used]) if used else np.zeros(0, dtype=np.int64)
         # Observations are stacked camera by camera, each camera's blocks in their order: the
         # blocks must come camera by camera (reject_outliers and the result walk them in order).
         cams = [b[0] for b in blocks]
@@ -261,27 +265,49 @@ class _RigProblem:
         w, h = self.sizes[c]
         return self.classes[c].from_params(state.params[c], width=w, height=h)
 
+    def _pointed(self, state: _RigState, c: int, Xc: np.ndarray) -> CameraModel:
+        """Camera c's model for projecting ``Xc`` (:meth:`CameraModel.for_points`). A camera
+        whose intrinsics are all held keeps one model, searched for its valid radius again only
+        where the points reach farther than before (within that reach the projections are
+        the same; the solver calls this a few times per iteration)."""
+        if self.free[c]:
+            return self.model(state, c).for_points(Xc)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            r = np.hypot(Xc[:, 0], Xc[:, 1]) / Xc[:, 2]
+        reach = float(r[(Xc[:, 2] > 0) & np.isfinite(r)].max(initial=0.0))
+        held = self._held.get(c)
+        if held is None or reach > held[0]:
+            # Searched a quarter farther than the points reach: the poses' steps move them.
+            wider = Xc * np.array([1.25, 1.25, 1.0])
+            held = (1.25 * reach, self.model(state, c).for_points(wider))
+            self._held[c] = held
+        return held[1]
+
     def linearize(self, state: _RigState) -> Linearization:
         G = len(self.global_names)
-        res, Jg, Jl, grp = [], [], [], []
+        n = self.n_obs
+        res, Jg, Jl = np.empty((n, 2)), np.zeros((n, 2, G)), np.empty((n, 2, 6))
+        lo = 0
         for c, data in enumerate(self.per_cam):
             if data is None:
                 continue
             obj, img, g = data
+            hi = lo + len(obj)
             RX, Xr = calib_kernels.rotate_views(state.Rs, state.ts, obj, g)
             Rc = state.Rc[c]
-            Xc = Xr @ Rc.T + state.tc[c]
-            uv, dp, dk = self.model(state, c).for_points(Xc).project_with_jacobian(Xc)
-            J = np.zeros((len(obj), 2, G))
+            XrRc = Xr @ Rc.T
+            Xc = XrRc + state.tc[c]
+            uv, dp, dk = self._pointed(state, c, Xc).project_with_jacobian(Xc)
             o = self.intr_off[c]
-            J[:, :, o:o + len(self.free[c])] = dk[:, :, self.free[c]]
+            if self.free[c]:
+                Jg[lo:hi, :, o:o + len(self.free[c])] = dk[:, :, self.free[c]]
             if self.pose_off[c] >= 0:
-                J[:, :, self.pose_off[c]:self.pose_off[c] + 6] = pose_jacobian(dp, Xr @ Rc.T)
-            res.append(uv - img)
-            Jg.append(J)
-            Jl.append(pose_jacobian(dp @ Rc, RX))
-            grp.append(g)
-        return Linearization(np.concatenate(res), np.concatenate(Jg), np.concatenate(Jl), np.concatenate(grp))
+                Jg[lo:hi, :, self.pose_off[c]:self.pose_off[c] + 6] = pose_jacobian(dp, XrRc)
+            np.subtract(uv, img, out=res[lo:hi])
+            # d pixel / d rig point = dp Rc (as (2N, 3) @ (3, 3): numpy's stacked matmul is slower)
+            Jl[lo:hi] = pose_jacobian((dp.reshape(-1, 3) @ Rc).reshape(dp.shape), RX)
+            lo = hi
+        return Linearization(res, Jg, Jl, self.group)
 
     def retract(self, state: _RigState, d_global: np.ndarray, d_local: np.ndarray) -> _RigState:
         params = []
@@ -459,17 +485,12 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
             # The poses' start from each view's homography onto the normalised image plane
             # (Zhang's decomposition, all views at once); the joint fit refines them.
             m = given[c]
-            Hs, ts_ok = [], []
             all_rays = np.split(m.unproject(np.concatenate(imgs)), np.cumsum([len(p) for p in imgs])[:-1])
-            for t, o, rays in zip(ts_c, objs, all_rays, strict=True):
-                ok = np.isfinite(rays).all(axis=1) & (rays[:, 2] > 1e-6)
-                if ok.sum() < 4:
-                    continue
-                try:
-                    Hs.append(find_homography(o[ok, :2], rays[ok, :2] / rays[ok, 2:], refine=False))
-                except EstimationError:
-                    continue
-                ts_ok.append(int(t))
+            usable = [np.isfinite(rays).all(axis=1) & (rays[:, 2] > 1e-6) for rays in all_rays]
+            found = dlt_homographies([o[ok, :2] for o, ok in zip(objs, usable, strict=True)],
+                                     [rays[ok, :2] / rays[ok, 2:] for rays, ok in zip(all_rays, usable, strict=True)])
+            ts_ok = [int(t) for t, H in zip(ts_c, found, strict=True) if H is not None]
+            Hs = [H for H in found if H is not None]
             poses = dict(zip(ts_ok, poses_from_homographies(np.eye(3), Hs), strict=True))
         else:
             try:
@@ -574,10 +595,12 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
     sq_t, n_t_used = np.zeros(n_t), np.zeros(n_t)
     per_cam: list[dict[int, np.ndarray]] = [{} for _ in range(n_c)]
     block_rms: dict[tuple[int, int], float] = {}
+    used_c: list[list[np.ndarray]] = [[] for _ in range(n_c)]
     for (c, t), m, r in zip(keys, masks, split, strict=True):
         full = np.full((len(m), 2), np.nan)
         full[m] = r
         per_cam[c][t] = full
+        used_c[c].append(r)
         s = float((r**2).sum())
         block_rms[(c, t)] = float(np.sqrt(s / len(r))) if len(r) else float("nan")
         sq_c[c] += s
@@ -585,14 +608,18 @@ def _result(problem: _RigProblem, report: Any, state: _RigState, keys: list[tupl
         sq_t[t] += s
         n_t_used[t] += len(r)
     cameras = []
+    k_of = {t: k for k, t in enumerate(groups)}
     for c in range(n_c):
         model = problem.model(state, c)
         inst = sorted(per_cam[c])
         # cam_from_target = cam_from_rig @ rig_from_target (exact rotations: no re-projection).
-        poses = [Pose._unchecked(state.Rc[c] @ rig_from_target[t].R, state.Rc[c] @ rig_from_target[t].t + state.tc[c])
-                 for t in inst]
+        ks = [k_of[t] for t in inst]
+        Rct = state.Rc[c] @ state.Rs[ks]
+        tct = state.ts[ks] @ state.Rc[c].T + state.tc[c]
+        poses = [Pose._unchecked(Rct[j], tct[j]) for j in range(len(inst))]
         resid = [per_cam[c][t] for t in inst]
-        R = np.concatenate([r[np.isfinite(r).all(axis=1)] for r in resid])
+        R = np.concatenate(used_c[c]) if used_c[c] else np.zeros((0, 2))
+        R = R[np.isfinite(R).all(axis=1)]
         o = problem.intr_off[c]
         idx = list(range(o, o + len(problem.free[c])))
         fnames = tuple(problem.classes[c].param_names[i] for i in problem.free[c])

@@ -8,7 +8,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from camkit.calib.homography import find_homography
+from camkit.calib.homography import dlt_homographies, find_homography
 from camkit.calib.result import stacked_points
 from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
 from camkit.errors import EstimationError, ParameterError
@@ -23,10 +23,12 @@ def perspective_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int
     """Zhang's closed form (Z. Zhang, "A flexible new technique for camera calibration", IEEE
     TPAMI 22(11), 2000, sec. 3.1): a homography per view (normalised DLT; the final refinement
     makes their own refinement needless), K from their constraints, then each view's pose."""
-    Hs = []
-    for o, p in zip(objs, imgs, strict=True):
-        ok = np.isfinite(p).all(axis=1)
-        Hs.append(find_homography(o[ok, :2], p[ok], refine=False))
+    seen = [np.isfinite(p).all(axis=1) for p in imgs]
+    Hs = dlt_homographies([o[ok, :2] for o, ok in zip(objs, seen, strict=True)],
+                          [p[ok] for p, ok in zip(imgs, seen, strict=True)])
+    # Where the batch finds none, find_homography raises and says why, in words.
+    Hs = [H if H is not None else find_homography(objs[k][seen[k], :2], imgs[k][seen[k]], refine=False)
+          for k, H in enumerate(Hs)]
     K = intrinsics_from_homographies(Hs, zero_skew=zero_skew)
     return K, poses_from_homographies(K, Hs)
 
@@ -42,7 +44,7 @@ def equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int
     r_max = max(float(np.nanmax(np.hypot(*(p - c).T))) for p in imgs)
 
     def fit(f: float) -> tuple[float, list[np.ndarray]]:
-        errs, Hs = [], []
+        errs, keep, planes, xns = [], [], [], []
         for o, p in zip(objs, imgs, strict=True):
             d = p - c
             r = np.hypot(d[:, 0], d[:, 1])
@@ -51,17 +53,18 @@ def equidistant_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int
             if ok.sum() < 4:
                 return np.inf, []
             scale = np.tan(theta[ok]) / np.maximum(r[ok], 1e-12)
-            xn = d[ok] * scale[:, None]
-            try:
-                H = find_homography(o[ok, :2], xn, refine=False)
-            except EstimationError:
-                return np.inf, []
-            q = np.c_[o[ok, :2], np.ones(ok.sum())] @ H.T
+            keep.append((d, r, theta, ok))
+            planes.append(o[ok, :2])
+            xns.append(d[ok] * scale[:, None])
+        Hs = dlt_homographies(planes, xns)
+        if any(H is None for H in Hs):
+            return np.inf, []
+        for (d, r, theta, ok), o2, H in zip(keep, planes, Hs, strict=True):
+            q = np.c_[o2, np.ones(ok.sum())] @ H.T
             ray_h = q / np.linalg.norm(q, axis=1, keepdims=True) * np.sign(q[:, 2:3])
             ray_o = np.c_[np.sin(theta[ok])[:, None] * d[ok] / np.maximum(r[ok], 1e-12)[:, None],
                           np.cos(theta[ok])]
             errs.append(np.arccos(np.clip((ray_h * ray_o).sum(axis=1), -1.0, 1.0)))
-            Hs.append(H)
         return float(np.median(np.concatenate(errs))), Hs
 
     grid = r_max / np.radians(np.linspace(15.0, 175.0, 41))

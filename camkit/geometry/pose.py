@@ -80,7 +80,7 @@ class Pose:
     @classmethod
     def identity(cls) -> Pose:
         """The pose that maps every point to itself."""
-        return cls(np.eye(3), np.zeros(3))
+        return cls._unchecked(np.eye(3), np.zeros(3))
 
     @classmethod
     def from_rvec(cls, rvec: Any, t: Any) -> Pose:

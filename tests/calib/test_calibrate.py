@@ -140,6 +140,35 @@ def test_homography_needs_four_points_and_matching_shapes():
         find_homography(np.ones((5, 2)), np.random.default_rng(0).uniform(size=(5, 2)))
 
 
+def test_homographies_at_once_are_find_homographys_and_none_where_it_raises():
+    """dlt_homographies (the calibration starts' batch) gives each view find_homography's H
+    unrefined, and None exactly where find_homography raises: too few points, coincident
+    points, a line of points (decided on the SVD, as find_homography decides it)."""
+    from camkit.calib.homography import dlt_homographies
+
+    rng = np.random.default_rng(3)
+    planes, pixels = [], []
+    for _ in range(12):
+        X = rng.uniform(0.0, 0.3, (int(rng.integers(4, 60)), 2))
+        H = np.array([[800.0, 20.0, 300.0], [-10.0, 790.0, 200.0], [0.1, -0.2, 1.0]]) + rng.normal(0, 5.0, (3, 3))
+        q = np.c_[X, np.ones(len(X))] @ H.T
+        planes.append(X)
+        pixels.append(q[:, :2] / q[:, 2:] + rng.normal(0.0, 0.1, (len(X), 2)))
+    planes[3], pixels[3] = planes[3][:3], pixels[3][:3]
+    planes[5] = np.ones_like(planes[5])
+    planes[8] = np.stack([np.linspace(0, 0.3, len(planes[8])), np.zeros(len(planes[8]))], axis=-1)
+    pixels[8] = planes[8] * 1000.0
+    got = dlt_homographies(planes, pixels)
+    for v, (X, u, H) in enumerate(zip(planes, pixels, got, strict=True)):
+        if v in (3, 5, 8):
+            assert H is None
+            with pytest.raises(EstimationError):
+                find_homography(X, u, refine=False)
+        else:
+            np.testing.assert_allclose(H, find_homography(X, u, refine=False), rtol=1e-9, atol=1e-12)
+    assert dlt_homographies([], []) == []
+
+
 @pytest.mark.parametrize("f", [400.0, 250.0])
 def test_fisheye_from_the_equidistant_start(f):
     # Up to 84 degrees off axis at f = 250 px: a pinhole homography cannot describe these views.

@@ -119,6 +119,30 @@ def test_fixed_intrinsics_are_kept() -> None:
     assert _angle_deg(r.cam_from_rig[1].R, RIGHT_FROM_LEFT.R) < 0.05
 
 
+def test_a_held_camera_keeps_one_model_until_its_points_reach_farther() -> None:
+    """A camera whose intrinsics are all held keeps the model the solver projects with; where
+    the points reach past the radius its valid disk was searched to, the search runs again,
+    and the projections are those of a fresh model for those points (a strong barrel lens,
+    whose valid disk ends near 0.85 of the ideal radius)."""
+    from camkit.calib.rig import _RigProblem, _RigState
+
+    lens = BrownConrady(fx=800.0, fy=800.0, cx=640.0, cy=480.0, width=1280, height=960, k1=-0.45)
+    obj = BOARD.object_points()
+    problem = _RigProblem([BrownConrady], [(1280, 960)], ["cam0"], [[]], 0,
+                          [(0, 0, obj, np.zeros((len(obj), 2)))], 1)
+    state = _RigState((lens.params(),), np.eye(3)[None], np.zeros((1, 3)), np.eye(3)[None], np.zeros((1, 3)))
+    models = []
+    for reach in (0.2, 0.22, 0.6):
+        xy = np.random.default_rng(0).uniform(-1.0, 1.0, (200, 2))
+        xy *= reach / np.hypot(*xy.T).max()
+        X = np.c_[xy, np.ones(200)]
+        m = problem._pointed(state, 0, X)
+        models.append(m)
+        np.testing.assert_array_equal(m.project(X), lens.for_points(X).project(X))
+        assert np.isfinite(m.project(X)).all()
+    assert models[0] is models[1] and models[2] is not models[1]
+
+
 def _cv_dist(m: BrownConrady) -> np.ndarray:
     return np.array([m.k1, m.k2, m.p1, m.p2, m.k3])
 
