@@ -484,6 +484,57 @@ def test_real_sets_against_opencv(shared_data, name):
     assert r.found - r.extra >= r.reference_found, r.missed
 
 
+def test_a_blurred_fisheye_view_whose_rim_column_the_check_drops_keeps_its_labels(shared_data):
+    """Issue 21 item 2 on a real photo altered (unseen in that form): fisheye view 23
+    (boofcv_fisheye, 6x4 board) blurred by a Gaussian of 2 px. The lattice is whole, but the
+    check drops the column at the rim (bent off its neighbours' map), and the shades past the
+    dropped column read as the board's border: the 19 corners left came back one column off
+    (wrong labels), at full resolution and at a third of the size. The dropped corners now mark
+    that side as the pattern going on: the board is placed against its true border."""
+    import json
+
+    from scipy.ndimage import gaussian_filter
+
+    from benchmarks.detect_real import compare
+    from camkit.io import read_image
+
+    folder = shared_data / "real_boards" / "boofcv_fisheye"
+    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
+                if i["image"] == "example_calibration_fisheye_chessboard_23.jpg")
+    img = read_image(folder / "images" / item["image"]).astype(np.float64)
+    img = np.clip(np.round(gaussian_filter(img, (2.0, 2.0, 0.0))), 0, 255).astype(np.uint8)
+    det = detect_corners(img, Checkerboard(6, 4, 0.03))
+    assert det.found and det.n_found >= 18, det.message
+    med, wrong, _, _ = compare(det.corners, np.asarray(item["corners"], dtype=float), 6, 4)
+    assert wrong == 0 and med < 0.3, (med, wrong)
+
+
+def test_clutter_past_a_narrow_margin_is_not_read_as_more_pattern(shared_data):
+    """Issue 21 items 1 and 4 on a real photo altered: opencv_right's right03 shrunk to a third
+    (213x160, squares of 15 px). Past the board's narrow margin, a keyboard and a desk change
+    shade beyond half of the outer squares by chance; no X-corner lies one step out. That read
+    as the pattern going on and the whole board was refused; now, with no X-corner there, the
+    colours must change beyond three in four of the outer squares. Found with OpenCV's labels."""
+    import json
+
+    from PIL import Image
+
+    from benchmarks.detect_real import compare
+    from camkit.io import read_image
+
+    folder = shared_data / "real_boards" / "opencv_right"
+    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
+                if i["image"] == "right03.jpg")
+    img = read_image(folder / "images" / item["image"])
+    h, w = img.shape[:2]
+    small = np.asarray(Image.fromarray(img).resize((round(w / 3), round(h / 3)), Image.BOX))
+    det = detect_corners(small, Checkerboard(9, 6, 0.025))
+    assert det.found and det.n_found == 54, det.message
+    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [small.shape[1] / w, small.shape[0] / h] - 0.5
+    med, wrong, _, _ = compare(det.corners, ref, 9, 6)
+    assert wrong == 0 and med < 0.2, (med, wrong)
+
+
 def test_fisheye_rim_corners_are_the_junctions_where_opencv_is_off(shared_data):
     """Issue 21 items 2 and 4: real fisheye view 20 (boofcv_fisheye), whose top row runs along
     the rim, is found whole (not before the growth's homography). Its reference corners come

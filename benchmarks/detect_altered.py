@@ -1,0 +1,169 @@
+"""Checkerboard detection on the real sets altered (issue 21, items 1, 2 and 4): photos the
+detector has not seen in that form.
+
+Every photo of ``../shared/data/real_boards`` whose board OpenCV found (``reference.json``) is
+turned a quarter, shrunk to a half or a third (box filter), enlarged 2x or 3x (bicubic),
+compressed as JPEG at quality 25, darkened to a fifth with noise, flattened to a quarter of
+its contrast with noise, blurred (Gaussian, 2 px), or lit by a ramp from 0.15 to 1 across its
+width. The reference corners follow the same map. On each altered photo:
+
+- OpenCV: whether ``findChessboardCornersSB`` (exhaustive, accuracy) or, up to 4 MP, the classic
+  ``findChessboardCorners`` still finds the board;
+- camkit: ``detect_corners``; a board OpenCV finds and camkit does not is *missed*; a returned
+  board with a corner nearer another reference corner than a third of the way to it (the
+  board's symmetries allowed, as :mod:`benchmarks.detect_real` scores) is *wrong*.
+
+Run: ``python -m benchmarks.detect_altered [--set NAME] [--alter NAME]`` (all sets and
+alterations by default: about 15 minutes on two cores).
+"""
+
+from __future__ import annotations
+
+import argparse
+import io
+import json
+import time
+from collections.abc import Callable
+
+import numpy as np
+
+from benchmarks.detect_real import DATA, compare
+from camkit.io import read_image
+from camkit.target import Checkerboard, detect_corners
+
+Alteration = Callable[[np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+
+
+def _u8(a: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(a), 0, 255).astype(np.uint8)
+
+
+def _turn(img: np.ndarray, pts: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """np.rot90 by k (counter-clockwise): (x, y) -> (y, W - 1 - x) each quarter."""
+    x, y = pts[:, 0], pts[:, 1]
+    h, w = img.shape[:2]
+    for _ in range(k % 4):
+        x, y = y, w - 1 - x
+        h, w = w, h
+    return np.ascontiguousarray(np.rot90(img, k)), np.stack([x, y], axis=-1)
+
+
+def _resize(img: np.ndarray, pts: np.ndarray, s: float) -> tuple[np.ndarray, np.ndarray]:
+    from PIL import Image
+
+    h, w = img.shape[:2]
+    out = np.asarray(Image.fromarray(img).resize((round(w * s), round(h * s)),
+                                                 Image.BICUBIC if s > 1 else Image.BOX))
+    sx, sy = out.shape[1] / w, out.shape[0] / h
+    return out, np.stack([(pts[:, 0] + 0.5) * sx - 0.5, (pts[:, 1] + 0.5) * sy - 0.5], axis=-1)
+
+
+def _jpeg(img: np.ndarray, pts: np.ndarray, quality: int) -> tuple[np.ndarray, np.ndarray]:
+    from PIL import Image
+
+    img = img[..., :3] if img.ndim == 3 else img
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, "JPEG", quality=quality)
+    buf.seek(0)
+    return np.asarray(Image.open(buf)), pts
+
+
+def _blur(img: np.ndarray, pts: np.ndarray, sigma: float) -> tuple[np.ndarray, np.ndarray]:
+    from scipy.ndimage import gaussian_filter
+
+    return _u8(gaussian_filter(img.astype(np.float64), (sigma, sigma, 0)[:img.ndim])), pts
+
+
+def _noisy(img: np.ndarray, gain: float, offset: float, noise: float) -> np.ndarray:
+    rng = np.random.default_rng(0)
+    return _u8(offset + (img.astype(np.float64) - offset) * gain + rng.normal(0.0, noise, img.shape))
+
+
+def _ramp(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    g = np.linspace(0.15, 1.0, img.shape[1])[None, :]
+    return _u8(img.astype(np.float64) * (g[..., None] if img.ndim == 3 else g)), pts
+
+
+ALTERATIONS: dict[str, Alteration] = {
+    "as is": lambda i, p: (i, p),
+    "turned 90": lambda i, p: _turn(i, p, 1),
+    "turned 270": lambda i, p: _turn(i, p, 3),
+    "half": lambda i, p: _resize(i, p, 0.5),
+    "third": lambda i, p: _resize(i, p, 1 / 3),
+    "2x": lambda i, p: _resize(i, p, 2.0),
+    "3x": lambda i, p: _resize(i, p, 3.0),
+    "jpeg 25": lambda i, p: _jpeg(i, p, 25),
+    "dark": lambda i, p: (_noisy(i, 0.2, 0.0, 2.0), p),
+    "flat": lambda i, p: (_noisy(i, 0.25, 128.0, 1.5), p),
+    "blur 2": lambda i, p: _blur(i, p, 2.0),
+    "ramp": _ramp,
+}
+
+
+def opencv_finds(img: np.ndarray, pattern: tuple[int, int]) -> bool:
+    import cv2
+
+    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY) if img.ndim == 3 else img
+    ok, _ = cv2.findChessboardCornersSB(grey, pattern, flags=cv2.CALIB_CB_EXHAUSTIVE | cv2.CALIB_CB_ACCURACY)
+    if ok or grey.size > 4e6:  # the classic detector takes seconds at 12 MP
+        return bool(ok)
+    ok, _ = cv2.findChessboardCorners(grey, pattern, flags=cv2.CALIB_CB_ADAPTIVE_THRESH | cv2.CALIB_CB_NORMALIZE_IMAGE)
+    return bool(ok)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--set", action="append", help="only this set (repeatable)")
+    ap.add_argument("--alter", action="append", choices=list(ALTERATIONS), help="only this alteration (repeatable)")
+    args = ap.parse_args(argv)
+    if not DATA.is_dir():
+        print(f"{DATA} is absent")
+        return 1
+    folders = sorted(p for p in DATA.iterdir() if (p / "reference.json").is_file())
+    folders = [p for p in folders if not args.set or p.name in args.set]
+    alters = args.alter or list(ALTERATIONS)
+    totals = {a: [0, 0, 0, 0] for a in alters}  # OpenCV found, camkit found of those, missed, wrong
+    print(f"{'set':18} {'alteration':11} {'OpenCV':>6} {'camkit':>6} {'missed':>6} {'wrong':>5} {'median px':>9} "
+          f"{'s/image':>7}")
+    for folder in folders:
+        ref = json.loads((folder / "reference.json").read_text())
+        cols, rows = ref["pattern"]
+        board = Checkerboard(cols, rows, 0.03)
+        photos = [(read_image(folder / "images" / e["image"]), e) for e in ref["images"] if e["found"]]
+        for name in alters:
+            cv_n = ck_n = 0
+            medians, notes = [], []
+            seconds = 0.0
+            for photo, e in photos:
+                img, pts = ALTERATIONS[name](photo, np.asarray(e["corners"], dtype=np.float64))
+                t0 = time.perf_counter()
+                det = detect_corners(img, board)
+                seconds += time.perf_counter() - t0
+                cv_ok = opencv_finds(img, (cols, rows))
+                cv_n += cv_ok
+                if det.found:
+                    med, wrong, _, _ = compare(det.corners, pts, cols, rows)
+                    medians.append(med)
+                    ck_n += cv_ok
+                    if wrong:
+                        notes.append(f"WRONG {e['image']}: {wrong} corners")
+                        totals[name][3] += 1
+                elif cv_ok:
+                    notes.append(f"missed {e['image']}: {det.message}")
+                    totals[name][2] += 1
+            totals[name][0] += cv_n
+            totals[name][1] += ck_n
+            print(f"{folder.name:18} {name:11} {cv_n:6d} {ck_n:6d} {cv_n - ck_n:6d} "
+                  f"{sum(n.startswith('WRONG') for n in notes):5d} "
+                  f"{np.median(medians) if medians else float('nan'):9.3f} {seconds / max(len(photos), 1):7.3f}",
+                  flush=True)
+            for n in notes:
+                print(f"    {n}", flush=True)
+    print("\nall sets:")
+    for name, (cv_n, ck_n, missed, wrong) in totals.items():
+        print(f"  {name:11} OpenCV {cv_n:4d}, camkit {ck_n:4d} of them (missed {missed}), wrong boards {wrong}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
