@@ -372,8 +372,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        lattice the board's size is labelled as it is, unless the checker pattern goes on past
        one end. A shorter one (part of the board hidden or outside the image) is placed
        against the side where the board's border is seen: half a square out, the outer
-       squares alternate; one and a half out, the plain light margin. Where neither end
-       shows it, or the lattice fits the board either way round, the board is not found.
+       squares alternate; one and a half out, the plain light margin. A side beyond which
+       the lattice had corners that step 4 dropped is never taken for the border (the
+       pattern goes on there). Where neither end shows it, or the lattice fits the board
+       either way round, the board is not found.
        One step past each side, where the pattern's next corners would be, X-corners at the
        places inside the image mean the pattern goes on (a row missed, or a larger pattern),
        whatever the shades say; a lattice as long as the board with the pattern going on
@@ -1395,8 +1397,9 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     alternating black and white; one and a half squares out lies the margin, uniform and as
     light as the white squares, where the board ends, or squares alternating the other way
     where it does not (changing colour across the outer squares' middle shade, not only
-    shade: a dark background past a narrow margin is not more pattern). Positions come from
-    the quadratic lattice map fitted near each sample.
+    shade: a dark background past a narrow margin is not more pattern; beyond half of the
+    outer squares each way, or three in four where no place one step out holds an X-corner).
+    Positions come from the quadratic lattice map fitted near each sample.
     One step out, where the pattern's next corners would be, X-corners at most of the places
     inside the image mean ``"more"`` whatever the shades say; where most of those places are
     inside the image and hold no X-corner, the pattern is seen to end there (the second dict,
