@@ -227,11 +227,14 @@ class _RigProblem:
 
     def __init__(self, classes: list[type[CameraModel]], sizes: list[tuple[int, int]], names: list[str],
                  free: list[list[int]], reference: int, blocks: list[tuple[int, int, np.ndarray, np.ndarray]],
-                 n_groups: int) -> None:
+                 n_groups: int, given: list[CameraModel | None] | None = None) -> None:
         self.classes, self.sizes, self.free, self.reference = classes, sizes, free, reference
         self.n_groups = n_groups
         self.blocks = blocks  # (camera, group, object points in use, pixels in use)
-        self._held: dict[int, tuple[float, CameraModel]] = {}
+        # A camera given with all its intrinsics held projects through that model as it is
+        # (its valid radius searched once, over its whole image, and kept with it).
+        self._held: dict[int, tuple[float, CameraModel]] = {
+            c: (np.inf, m) for c, m in enumerate(given or []) if m is not None and not free[c]}
         gn: list[str] = []
         self.intr_off, self.pose_off = [], []
         for c, cls in enumerate(classes):
@@ -267,9 +270,10 @@ class _RigProblem:
 
     def _pointed(self, state: _RigState, c: int, Xc: np.ndarray) -> CameraModel:
         """Camera c's model for projecting ``Xc`` (:meth:`CameraModel.for_points`). A camera
-        whose intrinsics are all held keeps one model, searched for its valid radius again only
-        where the points reach farther than before (within that reach the projections are
-        the same; the solver calls this a few times per iteration)."""
+        whose intrinsics are all held keeps one model: the one it was given, or one searched
+        for its valid radius again only where the points reach farther than before (within
+        that reach the projections are the same; the solver calls this a few times per
+        iteration)."""
         if self.free[c]:
             return self.model(state, c).for_points(Xc)
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -562,7 +566,7 @@ def calibrate_rig(views: Sequence[Sequence[Any]], targets: Target | Sequence[Tar
     for rnd, tol in enumerate(tolerances):
         final = rnd == len(tolerances) - 1
         blocks = [(c, g_of[t], obj_of[t][m], obs[c][t][m]) for (c, t), m in zip(keys, masks, strict=True)]
-        problem = _RigProblem(classes, sz, names, free_idx, reference, blocks, len(groups))
+        problem = _RigProblem(classes, sz, names, free_idx, reference, blocks, len(groups), given)
         report = solve(problem, state, LMOptions(max_iterations=max_iterations, tolerance=tol,
                                                  robust_loss=robust_loss, covariance=final))
         iterations += report.iterations

@@ -123,7 +123,8 @@ def test_a_held_camera_keeps_one_model_until_its_points_reach_farther() -> None:
     """A camera whose intrinsics are all held keeps the model the solver projects with; where
     the points reach past the radius its valid disk was searched to, the search runs again,
     and the projections are those of a fresh model for those points (a strong barrel lens,
-    whose valid disk ends near 0.85 of the ideal radius)."""
+    whose valid disk ends near 0.85 of the ideal radius). A camera given as a model keeps
+    that model."""
     from camkit.calib.rig import _RigProblem, _RigState
 
     lens = BrownConrady(fx=800.0, fy=800.0, cx=640.0, cy=480.0, width=1280, height=960, k1=-0.45)
@@ -141,6 +142,12 @@ def test_a_held_camera_keeps_one_model_until_its_points_reach_farther() -> None:
         np.testing.assert_array_equal(m.project(X), lens.for_points(X).project(X))
         assert np.isfinite(m.project(X)).all()
     assert models[0] is models[1] and models[2] is not models[1]
+    # A camera given with its intrinsics (calibrate_rig's intrinsics=) projects through the
+    # model it was given, whose valid radius is searched over its whole image once.
+    given = _RigProblem([BrownConrady], [(1280, 960)], ["cam0"], [[]], 0,
+                        [(0, 0, obj, np.zeros((len(obj), 2)))], 1, [lens])
+    assert given._pointed(state, 0, X) is lens
+    np.testing.assert_array_equal(lens.project(X), models[2].project(X))
 
 
 def _cv_dist(m: BrownConrady) -> np.ndarray:
