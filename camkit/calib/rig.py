@@ -276,10 +276,12 @@ class _RigProblem:
         iteration)."""
         if self.free[c]:
             return self.model(state, c).for_points(Xc)
+        held = self._held.get(c)
+        if held is not None and held[0] == np.inf:  # the model given: nothing to measure
+            return held[1]
         with np.errstate(divide="ignore", invalid="ignore"):
             r = np.hypot(Xc[:, 0], Xc[:, 1]) / Xc[:, 2]
         reach = float(r[(Xc[:, 2] > 0) & np.isfinite(r)].max(initial=0.0))
-        held = self._held.get(c)
         if held is None or reach > held[0]:
             # Searched a quarter farther than the points reach: the poses' steps move them.
             wider = Xc * np.array([1.25, 1.25, 1.0])
