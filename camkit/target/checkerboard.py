@@ -366,8 +366,13 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        where a model of the whole lattice (a homography and radial distortion, fitted on the
        corners that passed and trusted only where it predicts its own outer corners left out)
        predicts it within the same tolerance: a board near a fisheye's rim bends more than a
-       quadratic follows. The largest group of corners linked as neighbours is kept (a group
-       across a whole hidden row is not joined: nothing checks the count across it).
+       quadratic follows. Where corners stay dropped, one such model is also fitted on the
+       whole lattice, the corner it misses worst going each time until every corner left is
+       within the tolerance; where three in four or more are left and it predicts its own
+       outer corners left out, they are kept (at a fisheye's rim the squares can grow so fast
+       that the local check keeps too few for the first model to start from). The largest
+       group of corners linked as neighbours is kept (a group across a whole hidden row is
+       not joined: nothing checks the count across it).
     5. Labels: the lattice is made right-handed in the image (the printed face is seen). A
        lattice the board's size is labelled as it is, unless the checker pattern goes on past
        one end. A shorter one (part of the board hidden or outside the image) is placed
@@ -982,7 +987,11 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     keep = np.isfinite(moved) & (moved <= max(1.5, 0.25 * spacing)) & _fits_well(sig)
     keep[keep] = _point_symmetric(s, q[keep], spacing)
     sub = np.flatnonzero(keep)
-    keep[sub] = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), _check_tol(spacing), shape)
+    tol = _check_tol(spacing)
+    passed = _lens_rescue(g[sub], q[sub], _consistent(g[sub], q[sub], spacing), tol, shape)
+    if not passed.all():
+        passed |= _lens_consensus(g[sub], q[sub], tol, shape)
+    keep[sub] = passed
     g_all = g
     g, q, sig, symq = g[keep], q[keep], sig[keep], sym[keep]
     kept = np.flatnonzero(keep)
@@ -1238,6 +1247,58 @@ def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, tol: np.nd
     miss = np.hypot(*(lm.predict(p, g[drop].astype(np.float64)) - q[drop]).T)
     out = keep.copy()
     out[drop[miss <= np.minimum(tol[drop], back)]] = True
+    return out
+
+
+def _lens_consensus(g: np.ndarray, q: np.ndarray, tol: float, shape: tuple[int, ...],
+                    min_span: float = 2.0) -> np.ndarray:
+    """The corners that one global model of the lattice's image (:class:`_LensMap`) fitted on
+    the whole lattice predicts within ``tol`` pixels: the worst missed goes, the model is
+    fitted again on the rest, until every corner left is within the tolerance; then the model
+    must predict its own outer corners, a quarter at a time, left out of the fit (as
+    :func:`_lens_rescue` trusts it). None kept where fewer than ten corners, or fewer than
+    three in four of the lattice's, are left, or they span less than ``min_span`` lattice
+    steps either way.
+
+    Near a strong fisheye's rim the squares grow so fast from one step to the next that the
+    local check (:func:`_consistent`) keeps too few corners for :func:`_lens_rescue`'s model to
+    start from (real fisheye view 22 shrunk to a half: 6 of its 24 corners), while a lens model
+    fitted on all of them misses none by more than half a pixel. A corner on something else (an
+    occluder's edge, a second pattern) or linked a step off misses the model by a fraction of a
+    square and is the first to go."""
+    n = len(g)
+    out = np.zeros(n, dtype=bool)
+    if n < 10:
+        return out
+    gf = g.astype(np.float64)
+    idx = np.arange(n)
+    p = None
+    while len(idx) >= max(10, 0.75 * n):
+        if np.ptp(gf[idx], axis=0).min() < min_span:
+            return out
+        lm = _LensMap(shape, len(idx) >= 20, gf[idx])
+        p = lm.fit(gf[idx], q[idx], plain=True)
+        if p is None:
+            return out
+        miss = np.hypot(*(lm.predict(p, gf[idx]) - q[idx]).T)
+        worst = int(np.argmax(miss))
+        if miss[worst] <= tol:
+            break
+        idx = np.delete(idx, worst)
+        p = None
+    if p is None:
+        return out
+    gk, qk = gf[idx], q[idx]
+    lo, hi = gk.min(axis=0), gk.max(axis=0)
+    outer = np.flatnonzero((gk == lo).any(axis=1) | (gk == hi).any(axis=1))
+    for k in range(min(4, len(outer))):
+        held = outer[k::4]
+        rest = np.ones(len(gk), dtype=bool)
+        rest[held] = False
+        pk = lm.fit(gk[rest], qk[rest], start=p)
+        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tol):
+            return out
+    out[idx] = True
     return out
 
 
