@@ -193,10 +193,9 @@ def _sample(img: np.ndarray, x: np.ndarray, y: np.ndarray, interpolation: str) -
     return out
 
 
-def _profiles(s: np.ndarray, pts: np.ndarray, n: int = 32) -> np.ndarray:
+def _profiles(s: np.ndarray, pts: np.ndarray, n: int = 32, radius: float = _PROFILE_RADIUS) -> np.ndarray:
     ang = np.arange(n) * 2 * np.pi / n
-    return _sample(s, pts[:, :1] + _PROFILE_RADIUS * np.cos(ang), pts[:, 1:] + _PROFILE_RADIUS * np.sin(ang),
-                   "bilinear")
+    return _sample(s, pts[:, :1] + radius * np.cos(ang), pts[:, 1:] + radius * np.sin(ang), "bilinear")
 
 
 def _x_shape(v: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -382,7 +381,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        pattern goes on there). Where neither end shows it, or the lattice fits the board
        either way round, the board is not found.
        One step past each side, where the pattern's next corners would be, X-corners at the
-       places inside the image mean the pattern goes on (a row missed, or a larger pattern),
+       places inside the image (their circle a quarter of the spacing where that is under
+       4 px) mean the pattern goes on (a row missed, or a larger pattern),
        whatever the shades say; a lattice as long as the board with the pattern going on
        past an end is not found. A lattice one line longer than the board (a board with one
        more corner printed than declared) loses its weaker outer line only where the pattern
@@ -1458,6 +1458,14 @@ def _largest_part(g: np.ndarray) -> np.ndarray:
     return np.sort(G[labels == 1 + int(np.argmax(sizes))])
 
 
+#: The circle on which a place one step past the lattice is tested for an X-corner: this
+#: fraction of the spacing where that is under the detector's 4 px (squares of 10-16 px). It
+#: stays within the four squares around the place; the 4 px circle of 0.36 of an 11 px square
+#: crossed a narrow margin onto the board's dark frame and read X-corners there (real
+#: opencv_right photos at a third of their size: whole boards refused as "the pattern goes on").
+_STEP_OUT_RADIUS = 0.25
+
+
 def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float, min_contrast: float = _MIN_CONTRAST,
                      ) -> tuple[dict[tuple[int, int], str], dict[tuple[int, int], bool]]:
     """What lies beyond each side of the lattice: ``"border"`` (the row of outer squares, then
@@ -1471,8 +1479,9 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     shade: a dark background past a narrow margin is not more pattern; beyond half of the
     outer squares each way, or three in four where no place one step out holds an X-corner).
     Positions come from the quadratic lattice map fitted near each sample.
-    One step out, where the pattern's next corners would be, X-corners at most of the places
-    inside the image mean ``"more"`` whatever the shades say; where most of those places are
+    One step out, where the pattern's next corners would be, X-corners (on a circle of a
+    quarter of the spacing where that is under 4 px) at most of the places inside the image
+    mean ``"more"`` whatever the shades say; where most of those places are
     inside the image and hold no X-corner, the pattern is seen to end there (the second dict,
     True), even where the margin beyond is outside the image or dark.
     Keys: (axis, -1) for the low side of lattice axis ``axis``, (axis, +1) for the high side."""
@@ -1495,7 +1504,8 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             ended[(axis, side)] = False
             no_x = False
             if inside.any():
-                is_x = _x_test(_profiles(s, step[inside]), min_contrast)[0]
+                radius = min(_PROFILE_RADIUS, _STEP_OUT_RADIUS * spacing)
+                is_x = _x_test(_profiles(s, step[inside], radius=radius), min_contrast)[0]
                 if is_x.mean() >= 0.5:
                     out[(axis, side)] = "more"
                     continue

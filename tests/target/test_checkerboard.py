@@ -624,6 +624,33 @@ def test_clutter_past_a_narrow_margin_is_not_read_as_more_pattern(shared_data):
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
+@pytest.mark.parametrize("name", ["right06.jpg", "right14.jpg"])
+def test_a_narrow_margin_beside_a_dark_frame_is_not_more_pattern(shared_data, name):
+    """Issue 21 items 1 and 4 on real photos altered: opencv_right's right06 and right14 shrunk
+    to a third (213x160, squares of 11 px). One step past the board's side, the 4 px circle
+    (0.36 of a square) crossed the narrow white margin onto the board's dark frame and read
+    X-corners at half the places there: the 9x6 lattice, whole, was refused as "the pattern
+    goes on past one end". The places one step out are now tested on a circle of a quarter of
+    the spacing (it stays within the four squares around them): found, with OpenCV's labels."""
+    import json
+
+    from PIL import Image
+
+    from benchmarks.detect_real import compare
+    from camkit.io import read_image
+
+    folder = shared_data / "real_boards" / "opencv_right"
+    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"] if i["image"] == name)
+    img = read_image(folder / "images" / item["image"])
+    h, w = img.shape[:2]
+    small = np.asarray(Image.fromarray(img).resize((round(w / 3), round(h / 3)), Image.BOX))
+    det = detect_corners(small, Checkerboard(9, 6, 0.025))
+    assert det.found and det.n_found == 54, det.message
+    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [small.shape[1] / w, small.shape[0] / h] - 0.5
+    med, wrong, _, _ = compare(det.corners, ref, 9, 6)
+    assert wrong == 0 and med < 0.2, (med, wrong)
+
+
 def test_fisheye_rim_corners_are_the_junctions_where_opencv_is_off(shared_data):
     """Issue 21 items 2 and 4: real fisheye view 20 (boofcv_fisheye), whose top row runs along
     the rim, is found whole (not before the growth's homography). Its reference corners come
