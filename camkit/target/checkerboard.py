@@ -1244,15 +1244,8 @@ def _lens_rescue_once(g: np.ndarray, q: np.ndarray, keep: np.ndarray, tol: np.nd
     p = lm.fit(gk, qk, near=4.0 * float(np.median(tk)))
     if p is None:
         return keep
-    lo, hi = gk.min(axis=0), gk.max(axis=0)
-    outer = np.flatnonzero((gk == lo).any(axis=1) | (gk == hi).any(axis=1))
-    for k in range(min(4, len(outer))):  # four folds, each a quarter of the outer corners
-        held = outer[k::4]
-        rest = np.ones(len(gk), dtype=bool)
-        rest[held] = False
-        pk = lm.fit(gk[rest], qk[rest], start=p)
-        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tk[held]):
-            return keep
+    if not _predicts_outer(lm, p, gk, qk, tk):
+        return keep
     drop = np.flatnonzero(~keep)
     miss = np.hypot(*(lm.predict(p, g[drop].astype(np.float64)) - q[drop]).T)
     out = keep.copy()
@@ -1298,18 +1291,25 @@ def _lens_consensus(g: np.ndarray, q: np.ndarray, tol: float, shape: tuple[int, 
         p = None
     if p is None:
         return out
-    gk, qk = gf[idx], q[idx]
-    lo, hi = gk.min(axis=0), gk.max(axis=0)
-    outer = np.flatnonzero((gk == lo).any(axis=1) | (gk == hi).any(axis=1))
+    if _predicts_outer(lm, p, gf[idx], q[idx], np.full(len(idx), tol)):
+        out[idx] = True
+    return out
+
+
+def _predicts_outer(lm: _LensMap, p: np.ndarray, g: np.ndarray, q: np.ndarray, tol: np.ndarray) -> bool:
+    """Whether the lens model ``p`` (of ``lm``, fitted on all of ``g``, ``q``) predicts its own
+    outer corners from the rest: four folds, each a quarter of the outer corners left out of
+    the fit, every one within its tolerance ``tol`` (pixels, one per corner)."""
+    lo, hi = g.min(axis=0), g.max(axis=0)
+    outer = np.flatnonzero((g == lo).any(axis=1) | (g == hi).any(axis=1))
     for k in range(min(4, len(outer))):
         held = outer[k::4]
-        rest = np.ones(len(gk), dtype=bool)
+        rest = np.ones(len(g), dtype=bool)
         rest[held] = False
-        pk = lm.fit(gk[rest], qk[rest], start=p)
-        if pk is None or not np.all(np.hypot(*(lm.predict(pk, gk[held]) - qk[held]).T) <= tol):
-            return out
-    out[idx] = True
-    return out
+        pk = lm.fit(g[rest], q[rest], start=p)
+        if pk is None or not np.all(np.hypot(*(lm.predict(pk, g[held]) - q[held]).T) <= tol[held]):
+            return False
+    return True
 
 
 def _lens_veto(g: np.ndarray, q: np.ndarray, keep: np.ndarray, shape: tuple[int, ...], floor: float,

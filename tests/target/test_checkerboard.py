@@ -442,12 +442,10 @@ def test_a_lens_model_on_the_whole_lattice_keeps_true_corners_only():
     assert not kept[:, 6].any()
 
 
-def test_a_fisheye_rim_board_shrunk_to_a_half_is_found_whole(shared_data):
-    """Issue 21 items 1, 2 and 4 on a real photo altered: fisheye view 22 (boofcv_fisheye, 6x4
-    board at the rim) shrunk to a half (320x360). Its whole lattice is linked, but the local
-    check keeps 6 of 24 corners, too few for the lens model that puts corners back; the board
-    was refused ("the 2x2 corners seen fit the 6x4 board either way round"). A lens model on the
-    whole lattice keeps all 24, with OpenCV's labels."""
+def _real_resized(shared_data, folder_name: str, image: str, scale: float, board: Checkerboard):
+    """A real photo of ``real_boards/folder_name`` resized by ``scale`` (Pillow: box filter
+    down, bicubic up), detected, and scored against OpenCV's reference corners mapped the same
+    way (:func:`benchmarks.detect_real.compare`). Returns (detection, median px, wrong)."""
     import json
 
     from PIL import Image
@@ -455,16 +453,29 @@ def test_a_fisheye_rim_board_shrunk_to_a_half_is_found_whole(shared_data):
     from benchmarks.detect_real import compare
     from camkit.io import read_image
 
-    folder = shared_data / "real_boards" / "boofcv_fisheye"
-    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
-                if i["image"] == "example_calibration_fisheye_chessboard_22.jpg")
+    folder = shared_data / "real_boards" / folder_name
+    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"] if i["image"] == image)
     img = read_image(folder / "images" / item["image"])
     h, w = img.shape[:2]
-    small = np.asarray(Image.fromarray(img).resize((round(w / 2), round(h / 2)), Image.BOX))
-    det = detect_corners(small, Checkerboard(6, 4, 0.03))
+    out = np.asarray(Image.fromarray(img).resize((round(w * scale), round(h * scale)),
+                                                 Image.BOX if scale < 1 else Image.BICUBIC))
+    det = detect_corners(out, board)
+    if not det.found:
+        return det, np.nan, 0
+    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [out.shape[1] / w, out.shape[0] / h] - 0.5
+    med, wrong, _, _ = compare(det.corners, ref, board.inner_cols, board.inner_rows)
+    return det, med, wrong
+
+
+def test_a_fisheye_rim_board_shrunk_to_a_half_is_found_whole(shared_data):
+    """Issue 21 items 1, 2 and 4 on a real photo altered: fisheye view 22 (boofcv_fisheye, 6x4
+    board at the rim) shrunk to a half (320x360). Its whole lattice is linked, but the local
+    check keeps 6 of 24 corners, too few for the lens model that puts corners back; the board
+    was refused ("the 2x2 corners seen fit the 6x4 board either way round"). A lens model on the
+    whole lattice keeps all 24, with OpenCV's labels."""
+    det, med, wrong = _real_resized(shared_data, "boofcv_fisheye", "example_calibration_fisheye_chessboard_22.jpg",
+                                    0.5, Checkerboard(6, 4, 0.03))
     assert det.found and det.n_found == 24, det.message
-    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [small.shape[1] / w, small.shape[0] / h] - 0.5
-    med, wrong, _, _ = compare(det.corners, ref, 6, 4)
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
@@ -475,23 +486,9 @@ def test_a_fisheye_rim_board_enlarged_is_refined_at_full_resolution(shared_data)
     "inconsistent": the rim bends 0.107 of the lattice's corner triples by more than half a
     step, over the fixed 0.1 allowed. The refined lattice now only may not bend more than the
     coarse one did; the board is found whole, with OpenCV's labels."""
-    import json
-
-    from PIL import Image
-
-    from benchmarks.detect_real import compare
-    from camkit.io import read_image
-
-    folder = shared_data / "real_boards" / "boofcv_fisheye"
-    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
-                if i["image"] == "example_calibration_fisheye_chessboard_26.jpg")
-    img = read_image(folder / "images" / item["image"])
-    h, w = img.shape[:2]
-    big = np.asarray(Image.fromarray(img).resize((2 * w, 2 * h), Image.BICUBIC))
-    det = detect_corners(big, Checkerboard(6, 4, 0.03))
+    det, med, wrong = _real_resized(shared_data, "boofcv_fisheye", "example_calibration_fisheye_chessboard_26.jpg",
+                                    2.0, Checkerboard(6, 4, 0.03))
     assert det.found and det.n_found == 24, det.message
-    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * 2.0 - 0.5
-    med, wrong, _, _ = compare(det.corners, ref, 6, 4)
     assert wrong == 0 and med < 0.5, (med, wrong)
 
 
@@ -604,23 +601,8 @@ def test_clutter_past_a_narrow_margin_is_not_read_as_more_pattern(shared_data):
     shade beyond half of the outer squares by chance; no X-corner lies one step out. That read
     as the pattern going on and the whole board was refused; now, with no X-corner there, the
     colours must change beyond three in four of the outer squares. Found with OpenCV's labels."""
-    import json
-
-    from PIL import Image
-
-    from benchmarks.detect_real import compare
-    from camkit.io import read_image
-
-    folder = shared_data / "real_boards" / "opencv_right"
-    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"]
-                if i["image"] == "right03.jpg")
-    img = read_image(folder / "images" / item["image"])
-    h, w = img.shape[:2]
-    small = np.asarray(Image.fromarray(img).resize((round(w / 3), round(h / 3)), Image.BOX))
-    det = detect_corners(small, Checkerboard(9, 6, 0.025))
+    det, med, wrong = _real_resized(shared_data, "opencv_right", "right03.jpg", 1 / 3, Checkerboard(9, 6, 0.025))
     assert det.found and det.n_found == 54, det.message
-    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [small.shape[1] / w, small.shape[0] / h] - 0.5
-    med, wrong, _, _ = compare(det.corners, ref, 9, 6)
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
@@ -632,22 +614,8 @@ def test_a_narrow_margin_beside_a_dark_frame_is_not_more_pattern(shared_data, na
     X-corners at half the places there: the 9x6 lattice, whole, was refused as "the pattern
     goes on past one end". The places one step out are now tested on a circle of a quarter of
     the spacing (it stays within the four squares around them): found, with OpenCV's labels."""
-    import json
-
-    from PIL import Image
-
-    from benchmarks.detect_real import compare
-    from camkit.io import read_image
-
-    folder = shared_data / "real_boards" / "opencv_right"
-    item = next(i for i in json.loads((folder / "reference.json").read_text())["images"] if i["image"] == name)
-    img = read_image(folder / "images" / item["image"])
-    h, w = img.shape[:2]
-    small = np.asarray(Image.fromarray(img).resize((round(w / 3), round(h / 3)), Image.BOX))
-    det = detect_corners(small, Checkerboard(9, 6, 0.025))
+    det, med, wrong = _real_resized(shared_data, "opencv_right", name, 1 / 3, Checkerboard(9, 6, 0.025))
     assert det.found and det.n_found == 54, det.message
-    ref = (np.asarray(item["corners"], dtype=float) + 0.5) * [small.shape[1] / w, small.shape[0] / h] - 0.5
-    med, wrong, _, _ = compare(det.corners, ref, 9, 6)
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
