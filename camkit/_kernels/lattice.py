@@ -248,10 +248,47 @@ def _seed_diagonals(pts: np.ndarray, used: np.ndarray, taken: np.ndarray, seed: 
 
 
 _EDGE_STEPS = ((1, 0), (-1, 0), (0, 1), (0, -1))
+#: A grown link's shades either side must differ by this fraction of its corners' contrast.
+_LINK_CONTRAST = 0.2
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray, contrast: float, seed: int,
+def _links_along_edges(pts: np.ndarray, G: np.ndarray, img: np.ndarray, contrast: np.ndarray, k: int, a: int,
+                       b: int, coef: np.ndarray, sign0: float, R: int,
+                       offset: float) -> bool:  # pragma: no cover - numba
+    """Whether candidate ``k``, taken at lattice position (a, b), is linked to each of its edge
+    neighbours already in ``G`` along an edge between a black and a white square, the right
+    way round: a quarter, a half and three quarters along the link, the shades ``offset`` of
+    the other axis's step (``coef``'s, the local map at (a, b)) either side differ by a fifth
+    of the two corners' lower contrast, with the sign the checker's alternation gives (``sign0``:
+    the sign across the seed's edges, the seed at (R, R)). A corner of another pattern beside
+    the board (a second board past a narrow margin, a sheet over the board) that happens to lie
+    where the lattice's next corner would is not joined to it: its link crosses squares, not
+    along an edge, or the edge's colours are the wrong way round."""
+    for t in range(4):
+        da, db = _EDGE_STEPS[t]
+        aa, bb = a + da, b + db
+        if not (0 <= aa < G.shape[0] and 0 <= bb < G.shape[1]) or G[aa, bb] < 0:
+            continue
+        m = G[aa, bb]
+        # The square on the + side of the edge (+b for a link along a, +a for one along b)
+        # starts at the edge's lower end; its colour alternates with a + b.
+        lo = min(a, aa) + b if da != 0 else a + min(b, bb)
+        want = sign0 if (lo - 2 * R) % 2 == 0 else -sign0
+        ox, oy = (coef[2, 0], coef[2, 1]) if da != 0 else (coef[1, 0], coef[1, 1])
+        ox, oy = offset * ox, offset * oy
+        thr = _LINK_CONTRAST * min(contrast[k], contrast[m])
+        for f in (0.25, 0.5, 0.75):
+            mx = pts[m, 0] + f * (pts[k, 0] - pts[m, 0])
+            my = pts[m, 1] + f * (pts[k, 1] - pts[m, 1])
+            diff = bilinear(img, mx + ox, my + oy) - bilinear(img, mx - ox, my - oy)
+            if diff * want < thr:
+                return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray, contrast: np.ndarray, seed: int,
          G: np.ndarray, offset: float) -> int:  # pragma: no cover - numba
     """Grow a lattice from corner ``seed`` into ``G`` (square, odd side; the seed at its centre)
     and return how many corners it holds (1 where the seed's neighbourhood fails its checks).
@@ -265,8 +302,10 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     circle's edge directions are 20 degrees off or more. Then position after
     position next to the lattice is predicted from the members within two steps (quadratic or
     affine map, else the straight continuation of a row or column) and takes the candidate
-    nearest the prediction if it lies within a third of the local step and is free; where two
-    positions want one candidate, the nearer wins. Where five or more members fix a local
+    nearest the prediction if it lies within a third of the local step, is free and, where
+    the position has a map, is linked to each neighbour already in the lattice along an edge
+    the right way round (:func:`_links_along_edges`); where two positions want one candidate,
+    the nearer wins. ``contrast``: each candidate's (its profile circle's range). Where five or more members fix a local
     homography (:func:`local_homography`), it predicts the position too: it takes over where
     the polynomial finds no candidate (steps that shrink or grow from one to the next, towards
     a vanishing point or a fisheye's rim, which a polynomial extrapolates badly), and where
@@ -315,7 +354,7 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     for i1 in range(n_pairs):
         for i2 in range(i1 + 1, n_pairs):
             p, q = porder[i1], porder[i2]
-            if _seed_cross(pts, seed, pa[p], pb[p], pa[q], pb[q], img, contrast, offset):
+            if _seed_cross(pts, seed, pa[p], pb[p], pa[q], pb[q], img, contrast[seed], offset):
                 G[R + 1, R], G[R - 1, R], G[R, R + 1], G[R, R - 1] = pa[p], pb[p], pa[q], pb[q]
                 for k in (pa[p], pb[p], pa[q], pb[q]):
                     taken[k] = True
@@ -333,6 +372,13 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     if found_diag < 3:
         return 1
     count = 5 + found_diag
+    # The sign of the shade across the seed's edges, + side minus - side (the square (R, R) to
+    # (R + 1, R + 1) against its neighbour towards -b): the alternation fixes it on every edge.
+    ka, kb = G[R + 1, R], G[R, R + 1]
+    cx = pts[seed, 0] + 0.5 * (pts[ka, 0] - pts[seed, 0]) + 0.5 * (pts[kb, 0] - pts[seed, 0])
+    cy = pts[seed, 1] + 0.5 * (pts[ka, 1] - pts[seed, 1]) + 0.5 * (pts[kb, 1] - pts[seed, 1])
+    sign0 = 1.0 if bilinear(img, cx, cy) > bilinear(img, cx - (pts[kb, 0] - pts[seed, 0]),
+                                                    cy - (pts[kb, 1] - pts[seed, 1])) else -1.0
     tried = np.full((S, S), -1, dtype=np.int64)
     claim_d = np.empty(n)
     claim_a = np.empty(n, dtype=np.int64)
@@ -392,6 +438,8 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
                         k, dist, step = kh, dh, sh
                 if not dist <= step / 3.0 or taken[k] or used[k]:
                     continue
+                if kind > 0 and not _links_along_edges(pts, G, img, contrast, k, a, b, coef, sign0, R, offset):
+                    continue
                 if dist < claim_d[k]:
                     claim_d[k] = dist
                     claim_a[k] = a
@@ -424,7 +472,7 @@ def assemble(pts: np.ndarray, img: np.ndarray, contrast: np.ndarray, order: np.n
     for seed in order:
         if used[seed]:
             continue
-        c = grow(pts, spacing, used, img, contrast[seed], seed, G, offset)
+        c = grow(pts, spacing, used, img, contrast, seed, G, offset)
         if c < 5:
             continue
         for a in range(side):
@@ -495,14 +543,19 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: np.ndarray, keep: np.ndarray) 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side: int, near: np.ndarray,
-                   far: np.ndarray, beyond: np.ndarray) -> None:  # pragma: no cover - numba
+                   far: np.ndarray, beyond: np.ndarray, far_sides: np.ndarray,
+                   close: np.ndarray) -> None:  # pragma: no cover - numba
     """The shade half a square and one and a half squares out from the lattice's side ``side``
     (-1: low, +1: high) of lattice axis ``axis``, at each square along it (``near`` and ``far``
     hold one entry a square: between the corners j and j + 1 of the outer line), from the map
     fitted on the corners within two steps of the corner j (NaN where no map; infinity where the
     point lies outside the image or within 2 px of its edge). ``beyond`` (one row a square, x
     and y) gets where the lattice's next corner past corner j would be, one step out (NaN where
-    no map; infinity where it lies outside the image or within 2 px of its edge)."""
+    no map; infinity where it lies outside the image or within 2 px of its edge).
+    ``far_sides`` (one row a square) gets the shade one and a half squares out as ``far`` does,
+    three tenths and seven tenths of the way along the square instead of half; ``close`` (one
+    entry a square) the shade 1.2 squares out, half way along (a fifth of a square past the
+    outer squares: a narrow margin's)."""
     H, W = s.shape
     S = G.shape
     edge = 0 if side < 0 else S[axis] - 1
@@ -512,12 +565,15 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
         far[j] = np.nan
         beyond[j, 0] = np.nan
         beyond[j, 1] = np.nan
+        far_sides[j, 0] = np.nan
+        far_sides[j, 1] = np.nan
+        close[j] = np.nan
         a, b = (edge, j) if axis == 0 else (j, edge)
         if local_fit(G, q, a, b, 2, False, 4, coef) == 0:
             continue
-        for t in range(3):
-            depth = 0.5 if t == 0 else (1.5 if t == 1 else 1.0)
-            across = 0.5 if t < 2 else 0.0
+        for t in range(6):
+            depth = 0.5 if t == 0 else (1.0 if t == 2 else (1.2 if t == 5 else 1.5))
+            across = 0.5 if t < 2 or t == 5 else (0.0 if t == 2 else (0.3 if t == 3 else 0.7))
             ra = side * depth if axis == 0 else across
             rb = side * depth if axis == 1 else across
             x = coef[0, 0] + coef[1, 0] * ra + coef[2, 0] * rb + coef[3, 0] * ra * ra + coef[4, 0] * ra * rb \
@@ -532,5 +588,9 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
             v = bilinear(s, x, y) if inside else np.inf
             if t == 0:
                 near[j] = v
-            else:
+            elif t == 1:
                 far[j] = v
+            elif t == 5:
+                close[j] = v
+            else:
+                far_sides[j, t - 3] = v

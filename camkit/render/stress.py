@@ -2,13 +2,15 @@
 
 :func:`stress_view` draws one view from a seed: a camera of 0.1-24 MP (pinhole, Brown-Conrady
 barrel or pincushion, Kannala-Brandt fisheye), a board of 3-12 by 3-10 inner corners (either
-parity, printed either way round: a colour-inverted print is a board seen from behind), a pose
+parity, printed either way round: a colour-inverted print is a board seen from behind; a white
+margin of 0.1-1.5 squares round the squares), a pose
 tilted up to 70 degrees with squares of 10-250 px, sometimes partly outside the frame; motion
 blur and Gaussian blur, vignetting and uneven light, backlight (the board in shade beside a bright
 window), clutter behind the board (smooth texture,
 tiles, text, a second board of another size), finger-like occluders over it, sensor noise and
 JPEG compression (quality 40-95, through Pillow). Everything is drawn from
-``numpy.random.default_rng(seed)``, so a seed names a view.
+``numpy.random.default_rng(seed)`` (the margin and the backlight from streams of their own,
+``default_rng([seed, 7])`` and ``default_rng([seed, 21])``), so a seed names a view.
 
 The truth says which corners can be seen (inside the frame, not under an occluder) and which
 labellings of the board are right: a detector sees the printed face, so its labels are
@@ -304,10 +306,13 @@ def stress_view(seed: int, *, megapixels: tuple[float, float] = (0.1, 24.0),
     camera, lens = _camera(rng, (lo_mp, hi_mp))
     tags["lens"] = lens
     cols, rows = int(rng.integers(3, 13)), int(rng.integers(3, 11))
-    board = Checkerboard(cols, rows, 0.03)
+    # The sheet's white margin, 0.1-1.5 squares (a print trimmed close, or not): from a stream
+    # of its own, so that every other draw of the seed stays as it was before it varied.
+    margin = float(np.random.default_rng([seed, 7]).uniform(0.1, 1.5))
+    board = Checkerboard(cols, rows, 0.03, margin=0.03 * margin)
     partial = bool(rng.random() < 0.15)
     back = bool(rng.random() < 0.25)  # a colour-inverted print (or the same board from behind)
-    tags.update(partial=partial, inverted_print=back, board=f"{cols}x{rows}")
+    tags.update(partial=partial, inverted_print=back, board=f"{cols}x{rows}", margin=round(margin, 2))
     W, H = camera.width, camera.height
     fit = 0.8 * min(W, H) / (max(cols, rows) + 1)
     hi = max(min(hi_sq, fit * (2.0 if partial else 1.0)), lo_sq)

@@ -347,8 +347,13 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        distortion; where a local homography is fixed too, it takes over where the quadratic
        finds no candidate and must agree where both do: steps that shrink towards a vanishing
        point or a fisheye's rim) and takes the candidate nearest the prediction within a third
-       of the local step. Lattices are grown from every corner not yet in one; each of at
-       least half the size of the largest that could be the board (not more than two lines
+       of the local step, where its link to each neighbour already in the lattice runs along
+       an edge between a black and a white square, the right way round for the alternation
+       (a quarter, a half and three quarters along, the shades either side differ by a fifth
+       of the corners' contrast, with the sign the seed's squares give: a second pattern past
+       a narrow margin, or a sheet over the board, does not join the lattice where one of its
+       corners happens to lie near the next place). Lattices are grown from every corner not
+       yet in one; each of at least half the size of the largest that could be the board (not more than two lines
        longer than it either way round) goes through steps 3-6, and where two pass as the
        board (the board and a second pattern), the one whose border is seen on more sides,
        less the sides where it runs out of the image, wins; on a tie the board is not found.
@@ -376,7 +381,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        lattice the board's size is labelled as it is, unless the checker pattern goes on past
        one end. A shorter one (part of the board hidden or outside the image) is placed
        against the side where the board's border is seen: half a square out, the outer
-       squares alternate; one and a half out, the plain light margin. A side beyond which
+       squares alternate; one and a half out, the plain light margin (squares alternating
+       the other way there mean the pattern goes on; where no X-corner lies one step out, each
+       such square must be one colour across its width, as a second pattern past a narrow
+       margin is not). A side beyond which
        the lattice had corners that step 4 dropped is never taken for the border (the
        pattern goes on there). Where neither end shows it, or the lattice fits the board
        either way round, the board is not found.
@@ -1495,7 +1503,9 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             near_a = np.empty(int(ext[1 - axis]))
             far_a = np.empty_like(near_a)
             step = np.empty((len(near_a), 2))
-            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a, step)
+            far_sides = np.empty((len(near_a), 2))
+            close_a = np.empty_like(near_a)
+            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a, step, far_sides, close_a)
             # One step out, where the pattern's next corners would be: X-corners at most of the
             # places there inside the image (even one) mean the pattern goes on, whatever the
             # shades say; none at most of them, with at least half the places inside, mean it
@@ -1513,6 +1523,7 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
                 no_x = ended[(axis, side)] and not is_x.any()
             ok = np.isfinite(near_a) & np.isfinite(far_a)
             beyond = np.isinf(near_a) | np.isinf(far_a)
+            far_sides = far_sides[ok]
             if ok.sum() < 2 or beyond.sum() > ok.sum():
                 out[(axis, side)] = "outside" if beyond.sum() > ok.sum() else "unknown"
                 continue
@@ -1534,16 +1545,33 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             # beyond three in four of the outer squares (clutter past a narrow margin changes
             # beyond half by chance: real opencv_right at a third of its size); else half.
             most = 0.75 if no_x else 0.5
-            recoloured = bool(dark.any() and (~dark).any() and np.mean(f_[dark] > mid) >= most
-                              and np.mean(f_[~dark] < mid) >= most)
+            f_light, f_dark = f_ > mid, f_ < mid
+            if no_x:
+                # And each far square must be one colour across its width (three tenths, half and
+                # seven tenths along it): a second pattern past a narrow margin, at its own scale
+                # and angle, matches the alternation at the squares' middles by chance where a
+                # side has two or three squares (a 3x3 board beside a larger one).
+                f_light &= (far_sides > mid).all(axis=1)
+                f_dark &= (far_sides < mid).all(axis=1)
+            recoloured = bool(dark.any() and (~dark).any() and np.mean(f_light[dark]) >= most
+                              and np.mean(f_dark[~dark]) >= most)
             if abs(a_near) < 0.1 * max(contrast, 1e-9) or contrast < min_contrast * (0.1 / _MIN_CONTRAST):
                 out[(axis, side)] = "unknown"
             elif a_far * a_near < 0 and abs(a_far) > 0.4 * abs(a_near) and recoloured:
                 out[(axis, side)] = "more"
             else:
-                plain = abs(a_far) < 0.25 * abs(a_near)
-                light = float(np.mean(f_)) > black + 0.7 * (white - black)
-                out[(axis, side)] = "border" if plain and light else "unknown"
+                # The plain light margin, half a square past the outer squares, or where that
+                # lies past a narrow margin (a print trimmed close), a fifth of a square past.
+                out[(axis, side)] = "unknown"
+                for f_m in (f_, close_a[ok]):
+                    if not np.isfinite(f_m).all():
+                        continue
+                    a_m = float(np.mean(sign * (f_m - f_m.mean())))
+                    plain = abs(a_m) < 0.25 * abs(a_near)
+                    light = float(np.mean(f_m)) > black + 0.7 * (white - black)
+                    if plain and light:
+                        out[(axis, side)] = "border"
+                        break
     return out, ended
 
 

@@ -317,6 +317,36 @@ def test_steeply_tilted_boards_are_assembled(seed):
     assert det.n_found >= 0.9 * len(v.corners_px)
 
 
+@pytest.mark.parametrize("seed", [380, 1136, 1145])
+def test_a_small_board_with_a_narrow_margin_beside_a_second_board_is_its_own_lattice(seed):
+    """Three stress views (0.1-2 MP) of a 3x3 or 4x4 board printed with a margin of 0.17-0.36
+    squares over a larger second board. The second board's corners past the narrow margin lay
+    within a third of a step of where the lattice's next corners would be, and growth joined
+    the two patterns ("the corner lattice is 9x9, larger than the board's 4x4"); and with the
+    board's own lattice apart, the second board's squares past the margin matched the
+    alternation at the middles of the two or three outer squares by chance, so the pattern read
+    as going on. Now a grown link must run along an edge the right way round, and with no
+    X-corner one step out each square past the margin must be one colour across its width:
+    one lattice holds the board's corners and only those, and the board is found whole with
+    every label right."""
+    from benchmarks.detect_corpus import score
+    from camkit.render.stress import stress_view
+    from camkit.target import checkerboard as cb
+
+    v = stress_view(seed, megapixels=(0.1, 2.0))
+    assert "second_board" in v.tags and v.tags["margin"] < 0.4
+    truth = v.corners_px
+    near = []
+    for pts, _ in cb._lattices(cb._to_grey(v.image), max(v.board.inner_cols, v.board.inner_rows)):
+        d = np.hypot(*(pts[:, None, :] - truth[None]).transpose(2, 0, 1)).min(axis=1)
+        if (d <= 1.5).any():
+            near.append((len(pts), int((d <= 1.5).sum())))
+    assert near == [(len(truth), len(truth))], near
+    det = detect_corners(v.image, v.board)
+    assert det.found, det.message
+    assert det.n_found == len(truth) and score(v, det.corners)[0] == 0
+
+
 @pytest.mark.parametrize("seed", [1090, 756])
 def test_part_of_a_second_board_is_not_labelled_as_the_board(seed):
     """A second, different board in view, the board itself hidden by fingers: the second
@@ -526,13 +556,15 @@ def test_growth_follows_steps_that_shrink_towards_a_vanishing_point():
     assert not local_homography(G2, pts[:4], 2, 2, 2, out)
 
 
-@pytest.mark.parametrize("beyond, seen", [((0.02, 0.4), "unknown"), ((0.1, 0.85), "more")])
+@pytest.mark.parametrize("beyond, seen", [((0.02, 0.4), "border"), ((0.1, 0.85), "more")])
 def test_a_margin_over_a_dark_background_is_not_more_pattern(beyond, seen):
     """The border test (issue 21): past the board's outer squares and a narrow margin, a dark
     background whose shade happens to vary against the squares (dark beyond the light squares,
     less dark beyond the black ones, as where a fisheye's rim throws the samples past the
     sheet: real fisheye view 26) is not the pattern going on, which would change colour, not
-    only shade; the pattern going on is still seen as such."""
+    only shade; the narrow margin itself (a quarter of a square), read a fifth of a square past
+    the outer squares, is the board's border there ("unknown" while it was read only half a
+    square past them); the pattern going on is still seen as such."""
     from camkit._kernels import detect as detect_kernels
     from camkit.target import checkerboard as cb
 
