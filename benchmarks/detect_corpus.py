@@ -1,10 +1,11 @@
 """Checkerboard detection on the rendered stress corpus (issue 21, item 3).
 
 Views come from :func:`camkit.render.stress.stress_view` (seed = view number): poses up to 70
-degrees of tilt, squares of 10-250 px, 0.1-24 MP, barrel, pincushion and fisheye lenses,
-defocus and motion blur, noise, JPEG 40-95, vignetting and uneven light, partial views,
-occluders, tiles, text and second boards. For each view camkit's ``detect_corners`` is scored
-against the exact truth under the labellings the view allows (see ``stress_view``):
+degrees of tilt, squares of 10-250 px, margins of 0.1-1.5 squares round them, 0.1-24 MP,
+barrel, pincushion and fisheye lenses, defocus and motion blur, noise, JPEG 40-95, vignetting
+and uneven light, partial views, occluders, tiles, text and second boards. For each view
+camkit's ``detect_corners`` is scored against the exact truth under the labellings the view
+allows (see ``stress_view``):
 
 - wrong labels: returned corners more than 1 px from the true corner of their label (the
   issue's definition), counted per view and per corner;
