@@ -1485,7 +1485,10 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     light as the white squares, where the board ends, or squares alternating the other way
     where it does not (changing colour across the outer squares' middle shade, not only
     shade: a dark background past a narrow margin is not more pattern; beyond half of the
-    outer squares each way, or three in four where no place one step out holds an X-corner).
+    outer squares each way, or three in four where no place one step out holds an X-corner,
+    and there each such square one colour at three tenths, half and seven tenths of its
+    width). The margin is also read 1.2 squares out, a fifth past the outer squares: a narrow
+    margin (a print trimmed close) lies there and not at one and a half.
     Positions come from the quadratic lattice map fitted near each sample.
     One step out, where the pattern's next corners would be, X-corners (on a circle of a
     quarter of the spacing where that is under 4 px) at most of the places inside the image
