@@ -132,10 +132,12 @@ class RawGrey:
         return self._dense
 
 
-def _to_grey(image: np.ndarray, lazy: bool = False) -> np.ndarray:
+def _to_grey(image: np.ndarray, lazy: bool = False, with_step: bool = False) -> np.ndarray:
     """The image as float64 grey (the mean of R, G and B; alpha ignored), stretched so that its
     1st percentile is 0 and its 99th is 1. ``lazy``: a one-channel uint8 image comes back as
-    a :class:`RawGrey` (the same values, made where read)."""
+    a :class:`RawGrey` (the same values, made where read). ``with_step``: returns ``(grey,
+    step)``, ``step`` one level of the file's integer samples in the grey's units (0.0 for a
+    float image)."""
     img = as_image(image, "image")
     if img.dtype.kind == "f" and not np.isfinite(img).all():
         bad = int(np.count_nonzero(~np.isfinite(img)))
@@ -160,6 +162,8 @@ def _to_grey(image: np.ndarray, lazy: bool = False) -> np.ndarray:
         return RawGrey(np.ascontiguousarray(img3[:, :, 0]), scale * inv, -float(lo) * inv)  # type: ignore[return-value]
     g = new_image(img.shape[:2], np.dtype(np.float64))
     detect_kernels.grey_mean(img3, scale, float(lo), inv, g)
+    if with_step:
+        return g, (scale * inv if img.dtype.kind == "u" else 0.0)  # type: ignore[return-value]
     return g
 
 
@@ -415,7 +419,11 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
-       in the band the fit sees, through each corner's own fit).
+       in the band the fit sees, through each corner's own fit). Where that noise is under
+       one level of the file's samples, the middles were flattened (JPEG leaves its error
+       beside the edges, where the fit reads) or the image has no noise: each corner's noise
+       is then read from the residuals of its own point-symmetric fit (step 9), through the
+       same fit.
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.05 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
@@ -435,7 +443,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     """
     if not isinstance(board, Checkerboard):
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
-    grey = _to_grey(image)
+    grey, step = _to_grey(image, with_step=True)
     noise = _image_noise(grey)
     best = _detect(grey, board, noise)
     level = grey
@@ -453,7 +461,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
             full = _refine_full(grey, coarse, factor, board)
             if full.found and (not best.found or full.n_found > best.n_found):
                 best, best_factor = full, factor
-    return _drop_noisy(grey, best, board, best_factor, noise) if best.found else best
+    return _drop_noisy(grey, best, board, best_factor, noise, step) if best.found else best
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -603,9 +611,10 @@ def _fit_noise_factors(r: int, smoothing: float) -> tuple[float, tuple[float, fl
     return float(resid), (float(PKP[3, 3]), float(PKP[4, 4]))
 
 def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r: int,
-                 smoothing: float, image_noise: float) -> tuple[np.ndarray, float]:
+                 smoothing: float, image_noise: float) -> tuple[np.ndarray, float, np.ndarray]:
     """Each corner's one-sigma (per axis, px) from the image's noise, NaN where it has no
-    saddle, and the white pixel noise ``w`` measured on the board. The sigma is what the
+    saddle, the white pixel noise ``w`` measured on the board, and each corner's sigma per
+    unit of white noise (the first output is ``w`` times it). The sigma is what the
     fit's residuals miss (they take the smoothed noise as independent, and on a dim board
     under JPEG read tens of times low).
 
@@ -626,7 +635,7 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     sigma = np.full(len(corners), np.nan)
     seen = np.isfinite(corners).all(axis=1)
     if seen.sum() == 0:
-        return sigma, image_noise
+        return sigma, image_noise, sigma.copy()
     mid, clear = _square_middles(corners, cols, rows)
     h, w = grey.shape[:2]
     margin = r + 3
@@ -652,24 +661,27 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
         v = (res * res).mean(axis=1)
         # The neighbours' median adds about half a neighbour's variance to each middle's.
         white = max(white, float(v[v <= 4.0 * np.median(v)].mean() / resid_factor / (1.0 + 0.5 / _MIN_NOISE_SQUARES)))
-    var_d, var_e = white * var_grad[0], white * var_grad[1]
+    var_d, var_e = var_grad
     a, b, cc = coef[m:, 0], coef[m:, 1], coef[m:, 2]
     det = 4 * a * cc - b * b
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat fit: no sigma
         h11, h12, h22 = 2 * cc / det, -b / det, 2 * a / det
         sigma[seen] = np.sqrt(0.5 * (var_d * (h11 * h11 + h12 * h12) + var_e * (h12 * h12 + h22 * h22)))
-    return sigma, float(np.sqrt(white))
+    return sigma * np.sqrt(white), float(np.sqrt(white)), sigma
 
 
-def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float) -> Detection:
+def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float,
+                step: float = 0.0) -> Detection:
     """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
     the noise's (:func:`_noise_sigma`); corners moved to their point of symmetry
     (:func:`_symmetric`) take that estimate's; corners over ``_MAX_CORNER_SIGMA`` are
-    dropped."""
+    dropped. ``step``: one level of the file's samples in the grey's units; where the noise
+    measured on the board is below it, the flat squares were flattened (JPEG) and the noise
+    is read beside each corner instead (:func:`_symmetric`'s ``unit``)."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise, white = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
+    noise, white, unit = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
     sigma = np.fmax(det.sigma_px, noise)
-    corners, sigma = _symmetric(grey, det.corners, sigma, noise, cols, white)
+    corners, sigma = _symmetric(grey, det.corners, sigma, noise, cols, white, unit if white < step else None)
     det = Detection(True, corners, sigma, det.window_px, det.message)
     noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
     if not noisy.any():
@@ -798,7 +810,7 @@ def _split_map(mapped: np.ndarray, k: int, scale: float) -> tuple[np.ndarray, ..
 
 
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
-               white: float) -> tuple[np.ndarray, np.ndarray]:
+               white: float, unit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step 9 of :func:`detect_corners`: each corner moved to the point through which the image
     around it is point-symmetric on the board (a checkerboard is, about every inner corner),
     where that estimate agrees with the saddle point; returns (corners, sigma).
@@ -819,10 +831,18 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     board's white noise ``white`` and what the final residuals imply (model misfit, an
     occluder in the window). The saddle point stays where the symmetric point lies more
     than three of their combined sigmas and a tenth of a pixel from it, or more than half a
-    pixel, or cannot be placed (a sample outside the image, fewer than five neighbours)."""
+    pixel, or cannot be placed (a sample outside the image, fewer than five neighbours).
+
+    ``unit`` (each corner's saddle-point sigma per unit of white noise, :func:`_noise_sigma`)
+    is given where the noise measured in the squares' middles is below one level of the file:
+    the flat squares were flattened (JPEG keeps its error beside the edges, where the fit
+    reads, and none in the middles), and ``noise_sigma`` says nothing. Every corner is then
+    tried, and its saddle point's noise is ``unit`` times the larger of ``white`` and the noise
+    its own symmetric residuals imply; that decides, in place of ``noise_sigma``, whether it
+    moves, and is the sigma of a corner left at its saddle point."""
     seen = np.isfinite(corners).all(axis=1)
     with np.errstate(invalid="ignore"):
-        noisy = seen & (noise_sigma > _SYM_FROM_SIGMA)
+        noisy = seen & (noise_sigma > _SYM_FROM_SIGMA) if unit is None else seen
     if seen.sum() < 5 or not noisy.any():
         return corners, sigma
     spacing = _grid_spacing(corners, cols)
@@ -842,11 +862,16 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     m = np.full(len(use), a.shape[1], dtype=np.int64)
     detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use]), np.ascontiguousarray(a),
                                    np.ascontiguousarray(b), m, 20, 1e-3, pos, cov, wres)
+    out, sig = corners.copy(), sigma.copy()
     with np.errstate(invalid="ignore"):
         sym_sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, white)
         move = np.hypot(*(pos - corners[use]).T)
-        agree = (move <= np.minimum(0.1 + 3.0 * np.hypot(sigma[use], sym_sigma), 0.5)) & np.isfinite(sym_sigma)
-    out, sig = corners.copy(), sigma.copy()
+        if unit is not None:  # the noise beside each corner (see above)
+            local = unit[use] * np.fmax(wres, white)
+            sig[use] = np.where(np.isfinite(local), np.fmax(sigma[use], local), sigma[use])
+        agree = (move <= np.minimum(0.1 + 3.0 * np.hypot(sig[use], sym_sigma), 0.5)) & np.isfinite(sym_sigma)
+        if unit is not None:
+            agree &= local > _SYM_FROM_SIGMA
     out[use[agree]] = pos[agree]
     sig[use[agree]] = sym_sigma[agree]
     return out, sig
