@@ -842,7 +842,7 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     moves, and is the sigma of a corner left at its saddle point."""
     seen = np.isfinite(corners).all(axis=1)
     with np.errstate(invalid="ignore"):
-        noisy = seen & (noise_sigma > _SYM_FROM_SIGMA) if unit is None else seen
+        noisy = (seen & (noise_sigma > _SYM_FROM_SIGMA)) if unit is None else seen
     if seen.sum() < 5 or not noisy.any():
         return corners, sigma
     spacing = _grid_spacing(corners, cols)
