@@ -191,6 +191,20 @@ def neighbour_spacing(pts: np.ndarray, out: np.ndarray) -> None:  # pragma: no c
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _edge_shades(img: np.ndarray, x0: float, y0: float, x1: float, y1: float, ox: float,
+                 oy: float) -> tuple[float, float, float]:  # pragma: no cover - numba
+    """The shade at ``(ox, oy)`` beside the link from (x0, y0) to (x1, y1) less the shade at
+    ``-(ox, oy)``, a quarter, a half and three quarters along it: the test of
+    :func:`_seed_cross` and :func:`_links_along_edges` that a link runs along an edge."""
+    d = [0.0, 0.0, 0.0]
+    for i in range(3):
+        f = 0.25 * (i + 1)
+        mx, my = x0 + f * (x1 - x0), y0 + f * (y1 - y0)
+        d[i] = bilinear(img, mx + ox, my + oy) - bilinear(img, mx - ox, my - oy)
+    return d[0], d[1], d[2]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, img: np.ndarray,
                 contrast: float, offset: float) -> bool:  # pragma: no cover - numba
     """Whether ``a1 - seed - a2`` and ``b1 - seed - b2`` are a row and a column of a checker
@@ -216,10 +230,7 @@ def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, 
         k = a1 if t == 0 else a2 if t == 1 else b1 if t == 2 else b2
         ox, oy = (bx, by) if t < 2 else (ax, ay)
         first = 0.0
-        for f in (0.25, 0.5, 0.75):
-            mx, my = sx + f * (pts[k, 0] - sx), sy + f * (pts[k, 1] - sy)
-            diff = (bilinear(img, mx + offset * ox, my + offset * oy)
-                    - bilinear(img, mx - offset * ox, my - offset * oy))
+        for diff in _edge_shades(img, sx, sy, pts[k, 0], pts[k, 1], offset * ox, offset * oy):
             if abs(diff) < 0.4 * contrast or diff * first < 0:
                 return False
             first = diff
@@ -278,10 +289,7 @@ def _links_along_edges(pts: np.ndarray, G: np.ndarray, img: np.ndarray, contrast
         ox, oy = (coef[2, 0], coef[2, 1]) if da != 0 else (coef[1, 0], coef[1, 1])
         ox, oy = offset * ox, offset * oy
         thr = _LINK_CONTRAST * min(contrast[k], contrast[m])
-        for f in (0.25, 0.5, 0.75):
-            mx = pts[m, 0] + f * (pts[k, 0] - pts[m, 0])
-            my = pts[m, 1] + f * (pts[k, 1] - pts[m, 1])
-            diff = bilinear(img, mx + ox, my + oy) - bilinear(img, mx - ox, my - oy)
+        for diff in _edge_shades(img, pts[m, 0], pts[m, 1], pts[k, 0], pts[k, 1], ox, oy):
             if diff * want < thr:
                 return False
     return True
