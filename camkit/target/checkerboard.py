@@ -712,6 +712,16 @@ _SYM_FROM_SIGMA = 0.05
 #: ... on the image smoothed by this Gaussian sigma (px): the gradients' noise otherwise
 #: inflates the normal matrix and the sigma reads low on dim boards.
 _SYM_SMOOTHING = 1.0
+#: ... and, for a corner moved there that lies in a whole 3x3 block of found corners, again
+#: out to this fraction of a square, kept where its sigma is the smaller (benchmarks/notes.md,
+#: thirty-first session).
+_SYM_WIDE_REACH = 0.7
+#: ... an edge corner's map from the whole 3x3 block a corner inward, where that block's
+#: quadratic misses its corners by at most this (px, RMS) plus ``_SYM_BLOCK_NOISE`` times
+#: their sigma: more says the lens bends the map faster than a quadratic follows a square
+#: beyond it (fisheye rims: 0.16 px off on a noise-free view without this test).
+_SYM_BLOCK_MISFIT = 0.03
+_SYM_BLOCK_NOISE = 1.5
 
 
 def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _SYM_REACH,
@@ -780,6 +790,60 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
     return a, b, usable, ref + centre, du, dv
 
 
+def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
+                only: np.ndarray, corner_sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The local maps of :func:`_local_maps` (``a``, ``b``, usable) for the corners ``only``,
+    each a quadratic fitted on a whole 3x3 block of found corners that holds it: its own
+    neighbourhood where that is whole, else the nearest block shifted a corner inward (an
+    edge corner's). Only the quadratic's second-order terms shape the mirrored pairs (a
+    linear map mirrors every offset to its negative), and a quadratic's are the same over
+    the whole plane, so a shifted block serves where the lens's bending changes little
+    over a square: where its quadratic misses the block's corners by no more than
+    ``_SYM_BLOCK_MISFIT`` plus ``_SYM_BLOCK_NOISE`` times their RMS ``corner_sigma``.
+    Corners in no such block have no map."""
+    n = len(corners)
+    rows = n // cols
+    found = np.zeros((rows + 4, cols + 4), dtype=bool)
+    found[2:-2, 2:-2] = np.isfinite(corners).all(axis=1).reshape(rows, cols)
+    # whole[r, c]: the 3x3 block centred on corner (r - 1, c - 1) (one row and column of padding) was found
+    whole = np.ones((rows + 2, cols + 2), dtype=bool)
+    for dr in (-1, 0, 1):
+        for dc in (-1, 0, 1):
+            whole &= found[1 + dr:rows + 3 + dr, 1 + dc:cols + 3 + dc]
+    r, c = np.divmod(only, cols)
+    shifts = [(0, 0), (0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)]  # (dc, dr)
+    shift = np.zeros((len(only), 2), dtype=np.int64)
+    ok = np.zeros(len(only), dtype=bool)
+    for dc, dr in shifts:
+        take = ~ok & whole[r + 1 + dr, c + 1 + dc]
+        shift[take] = (dc, dr)
+        ok |= take
+    src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.int64)  # (9, 2)
+    off = src[None] + shift[:, None]  # (K, 9, 2): the block's corners relative to the corner
+    rr = np.clip(r[:, None] + off[..., 1], 0, rows - 1)
+    cc = np.clip(c[:, None] + off[..., 0], 0, cols - 1)
+    scale = max(float(spacing), 1.0)
+    rel = (corners[rr * cols + cc] - corners[only][:, None]) / scale  # (K, 9, 2)
+    ends, k = _map_ends(spacing, reach)
+    mapped = np.full((len(only), len(ends), 2), np.nan)
+    if ok.any():
+        def basis(x: np.ndarray) -> np.ndarray:
+            return np.stack([np.ones(x.shape[:-1]), x[..., 0], x[..., 1], x[..., 0] ** 2, x[..., 0] * x[..., 1],
+                             x[..., 1] ** 2], axis=-1)
+
+        Q = basis(off[ok].astype(np.float64))  # (K', 9, 6)
+        coef = np.linalg.solve(Q.transpose(0, 2, 1) @ Q, Q.transpose(0, 2, 1) @ rel[ok])  # (K', 6, 2)
+        mapped[ok] = basis(ends)[None] @ coef * scale
+        misfit = np.sqrt(((Q @ coef - rel[ok]) ** 2).sum(axis=2).mean(axis=1)) * scale  # px
+        moved = np.any(shift[ok] != 0, axis=1)
+        with np.errstate(invalid="ignore"):
+            spread = np.sqrt(np.mean(corner_sigma[(rr * cols + cc)[ok]] ** 2, axis=1))
+            bent = moved & ~(misfit <= _SYM_BLOCK_MISFIT + _SYM_BLOCK_NOISE * spread)
+        ok[np.flatnonzero(ok)[bent]] = False
+    a, b, usable = _split_map(mapped, k, scale)[:3]
+    return a, b, usable & ok
+
+
 def _map_ends(spacing: float, reach: float) -> tuple[np.ndarray, int]:
     """The board offsets (squares) a local map is read at, (2 k + 5, 2): 0, the half grid ``u``
     of :func:`_symmetric` out to ``reach`` squares (``k`` points, about :data:`_SYM_STEP_PX`
@@ -832,6 +896,13 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     occluder in the window). The saddle point stays where the symmetric point lies more
     than three of their combined sigmas and a tenth of a pixel from it, or more than half a
     pixel, or cannot be placed (a sample outside the image, fewer than five neighbours).
+    A corner so moved that lies in a whole 3x3 block of found corners is fitted again out to
+    ``_SYM_WIDE_REACH`` of a square (the board is point-symmetric about an inner corner out
+    to a whole square each way; the noise moves a fit over more of the edges less), on that
+    block's quadratic map (:func:`_block_maps`: an edge corner's homography through five to
+    seven neighbours does not follow the lens that far, 0.08 px off on a noise-free barrel
+    view), and that point is kept where it too agrees with the saddle point and its sigma is
+    the smaller.
 
     ``unit`` (each corner's saddle-point sigma per unit of white noise, :func:`_noise_sigma`)
     is given where the noise measured in the squares' middles is below one level of the file:
@@ -865,13 +936,33 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     out, sig = corners.copy(), sigma.copy()
     with np.errstate(invalid="ignore"):
         sym_sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, white)
-        move = np.hypot(*(pos - corners[use]).T)
-        if unit is not None:  # the noise beside each corner (see above)
+        if unit is not None:  # the noise beside each corner (see above), read at the saddle fit's scale
             local = unit[use] * np.fmax(wres, white)
             sig[use] = np.where(np.isfinite(local), np.fmax(sigma[use], local), sigma[use])
-        agree = (move <= np.minimum(0.1 + 3.0 * np.hypot(sig[use], sym_sigma), 0.5)) & np.isfinite(sym_sigma)
-        if unit is not None:
-            agree &= local > _SYM_FROM_SIGMA
+
+    def agreeing(p: np.ndarray, s: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """Which of the points ``p`` (sigma ``s``) for the corners ``use[k]`` agree with their saddle points."""
+        with np.errstate(invalid="ignore"):
+            move = np.hypot(*(p - corners[use[k]]).T)
+            return (move <= np.minimum(0.1 + 3.0 * np.hypot(sig[use[k]], s), 0.5)) & np.isfinite(s)
+
+    agree = agreeing(pos, sym_sigma, np.arange(len(use)))
+    if unit is not None:
+        agree &= local > _SYM_FROM_SIGMA
+    wide = np.flatnonzero(agree)
+    if len(wide) and _SYM_WIDE_REACH > _SYM_REACH:
+        aw, bw, okw = _block_maps(corners, cols, spacing, _SYM_WIDE_REACH, use[wide], sigma)
+        wide, aw, bw = wide[okw], aw[okw], bw[okw]
+        posw = np.empty((len(wide), 2))
+        covw = np.empty((len(wide), 3))
+        wresw = np.empty(len(wide))
+        detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[wide]]), np.ascontiguousarray(aw),
+                                       np.ascontiguousarray(bw), np.full(len(wide), aw.shape[1], dtype=np.int64),
+                                       20, 1e-3, posw, covw, wresw)
+        with np.errstate(invalid="ignore"):
+            sw = np.sqrt(0.5 * (covw[:, 0] + covw[:, 2])) * np.fmax(wresw, white)
+            better = (sw < sym_sigma[wide]) & agreeing(posw, sw, wide)
+        pos[wide[better]], sym_sigma[wide[better]] = posw[better], sw[better]
     out[use[agree]] = pos[agree]
     sig[use[agree]] = sym_sigma[agree]
     return out, sig
