@@ -724,6 +724,12 @@ _SYM_BLOCK_MISFIT = 0.03
 _SYM_BLOCK_NOISE = 1.5
 
 
+def _quad_basis(x: np.ndarray) -> np.ndarray:
+    """The quadratic monomials 1, u, v, u^2, u v, v^2 of board offsets ``x`` (..., 2): (..., 6)."""
+    u, v = x[..., 0], x[..., 1]
+    return np.stack([np.ones(u.shape), u, v, u * u, u * v, v * v], axis=-1)
+
+
 def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _SYM_REACH,
                 centre_known: bool = True, only: np.ndarray | None = None) -> tuple[np.ndarray, ...]:
     """Each corner's map of its board neighbourhood: board offsets (du, dv) in squares to
@@ -755,17 +761,13 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
                        np.nansum(np.where(have[..., None], dst, 0.0), axis=1) / np.maximum(count, 1)[:, None])
     rel = np.where(have[..., None], (dst - np.nan_to_num(ref)[:, None]) / scale, 0.0)
     ends, k = _map_ends(spacing, reach)
-
-    def quad_basis(x: np.ndarray) -> np.ndarray:
-        return np.stack([np.ones(len(x)), x[:, 0], x[:, 1], x[:, 0] ** 2, x[:, 0] * x[:, 1], x[:, 1] ** 2], axis=1)
-
     mapped = np.full((len(pts), len(ends), 2), np.nan)
     quad = count >= 8
     if quad.any():
-        Q = quad_basis(src)
+        Q = _quad_basis(src)
         Qw = Q[None] * have[quad][:, :, None]
         coef = np.linalg.solve(Qw.transpose(0, 2, 1) @ Q[None], Qw.transpose(0, 2, 1) @ rel[quad])  # (K, 6, 2)
-        mapped[quad] = quad_basis(ends)[None] @ coef
+        mapped[quad] = _quad_basis(ends)[None] @ coef
     homog = (count >= (5 if centre_known else 4)) & ~quad  # four points and the centre, or four around it
     if homog.any():
         h = have[homog]
@@ -827,13 +829,9 @@ def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
     ends, k = _map_ends(spacing, reach)
     mapped = np.full((len(only), len(ends), 2), np.nan)
     if ok.any():
-        def basis(x: np.ndarray) -> np.ndarray:
-            return np.stack([np.ones(x.shape[:-1]), x[..., 0], x[..., 1], x[..., 0] ** 2, x[..., 0] * x[..., 1],
-                             x[..., 1] ** 2], axis=-1)
-
-        Q = basis(off[ok].astype(np.float64))  # (K', 9, 6)
+        Q = _quad_basis(off[ok].astype(np.float64))  # (K', 9, 6)
         coef = np.linalg.solve(Q.transpose(0, 2, 1) @ Q, Q.transpose(0, 2, 1) @ rel[ok])  # (K', 6, 2)
-        mapped[ok] = basis(ends)[None] @ coef * scale
+        mapped[ok] = _quad_basis(ends)[None] @ coef * scale
         misfit = np.sqrt(((Q @ coef - rel[ok]) ** 2).sum(axis=2).mean(axis=1)) * scale  # px
         moved = np.any(shift[ok] != 0, axis=1)
         with np.errstate(invalid="ignore"):
