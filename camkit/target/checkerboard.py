@@ -925,15 +925,20 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     img = np.empty(grey.shape)
     detect_kernels.gaussian_blur(np.ascontiguousarray(grey, dtype=np.float64), _SYM_SMOOTHING, img)
     taps = detect_kernels.gaussian_taps(_SYM_SMOOTHING)
-    pos = np.empty((len(use), 2))
-    cov = np.empty((len(use), 3))
-    wres = np.empty(len(use))
-    m = np.full(len(use), a.shape[1], dtype=np.int64)
-    detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use]), np.ascontiguousarray(a),
-                                   np.ascontiguousarray(b), m, 20, 1e-3, pos, cov, wres)
+
+    def refine(k: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The corners ``use[k]`` at their point of symmetry on the maps ``a``, ``b``: (points,
+        sigma, the white noise their residuals imply)."""
+        p, cv, wr = np.empty((len(k), 2)), np.empty((len(k), 3)), np.empty(len(k))
+        detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[k]]), np.ascontiguousarray(a),
+                                       np.ascontiguousarray(b), np.full(len(k), a.shape[1], dtype=np.int64),
+                                       20, 1e-3, p, cv, wr)
+        with np.errstate(invalid="ignore"):
+            return p, np.sqrt(0.5 * (cv[:, 0] + cv[:, 2])) * np.fmax(wr, white), wr
+
+    pos, sym_sigma, wres = refine(np.arange(len(use)), a, b)
     out, sig = corners.copy(), sigma.copy()
     with np.errstate(invalid="ignore"):
-        sym_sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, white)
         if unit is not None:  # the noise beside each corner (see above), read at the saddle fit's scale
             local = unit[use] * np.fmax(wres, white)
             sig[use] = np.where(np.isfinite(local), np.fmax(sigma[use], local), sigma[use])
@@ -951,14 +956,8 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     if len(wide) and _SYM_WIDE_REACH > _SYM_REACH:
         aw, bw, okw = _block_maps(corners, cols, spacing, _SYM_WIDE_REACH, use[wide], sigma)
         wide, aw, bw = wide[okw], aw[okw], bw[okw]
-        posw = np.empty((len(wide), 2))
-        covw = np.empty((len(wide), 3))
-        wresw = np.empty(len(wide))
-        detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[wide]]), np.ascontiguousarray(aw),
-                                       np.ascontiguousarray(bw), np.full(len(wide), aw.shape[1], dtype=np.int64),
-                                       20, 1e-3, posw, covw, wresw)
+        posw, sw = refine(wide, aw, bw)[:2]
         with np.errstate(invalid="ignore"):
-            sw = np.sqrt(0.5 * (covw[:, 0] + covw[:, 2])) * np.fmax(wresw, white)
             better = (sw < sym_sigma[wide]) & agreeing(posw, sw, wide)
         pos[wide[better]], sym_sigma[wide[better]] = posw[better], sw[better]
     out[use[agree]] = pos[agree]
