@@ -722,6 +722,11 @@ _SYM_WIDE_REACH = 0.7
 #: beyond it (fisheye rims: 0.16 px off on a noise-free view without this test).
 _SYM_BLOCK_MISFIT = 0.03
 _SYM_BLOCK_NOISE = 1.5
+#: The symmetric point replaces the saddle point only within this distance of it (px), besides
+#: three of their combined sigmas: at half a pixel, the noisiest saddle points (0.4-1.1 px
+#: off on a dim board under noise of a quarter of its contrast) kept the bound, and their
+#: symmetric points, 0.02-0.29 px off, were dropped (benchmarks/notes.md, thirty-second session).
+_SYM_AGREE_PX = 1.0
 
 
 def _quad_basis(x: np.ndarray) -> np.ndarray:
@@ -892,8 +897,8 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     estimator's through the smoothing and the bilinear weights, times the larger of the
     board's white noise ``white`` and what the final residuals imply (model misfit, an
     occluder in the window). The saddle point stays where the symmetric point lies more
-    than three of their combined sigmas and a tenth of a pixel from it, or more than half a
-    pixel, or cannot be placed (a sample outside the image, fewer than five neighbours).
+    than three of their combined sigmas and a tenth of a pixel from it, or more than
+    ``_SYM_AGREE_PX``, or cannot be placed (a sample outside the image, fewer than five neighbours).
     A corner so moved that lies in a whole 3x3 block of found corners is fitted again out to
     ``_SYM_WIDE_REACH`` of a square (the board is point-symmetric about an inner corner out
     to a whole square each way; the noise moves a fit over more of the edges less), on that
@@ -947,7 +952,7 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
         """Which of the points ``p`` (sigma ``s``) for the corners ``use[k]`` agree with their saddle points."""
         with np.errstate(invalid="ignore"):
             move = np.hypot(*(p - corners[use[k]]).T)
-            return (move <= np.minimum(0.1 + 3.0 * np.hypot(sig[use[k]], s), 0.5)) & np.isfinite(s)
+            return (move <= np.minimum(0.1 + 3.0 * np.hypot(sig[use[k]], s), _SYM_AGREE_PX)) & np.isfinite(s)
 
     agree = agreeing(pos, sym_sigma, np.arange(len(use)))
     if unit is not None:
