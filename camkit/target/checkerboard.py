@@ -415,7 +415,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        or more, steps 1-6 run again on the image halved (2x2 means), and again, as long as the
        smaller side keeps 120 px; the corners found at a level are refined on the full image
        with the smoothing and window scaled by the factor (smoothing only patches around the
-       corners), and the level that labels the most corners wins (the finest on a tie).
+       corners) and tested there for point symmetry again, also against the board's own
+       corners (over four times their median asymmetry, where that passes 0.05, is not a
+       clean junction: an occluder's edge that the coarse level's circle blurred), and the
+       level that labels the most corners wins (the finest on a tie).
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
@@ -508,13 +511,21 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     # The smoothing scaled by the factor, computed only on a patch around each corner: enough
     # for the fit's window, its bicubic support and the fit's moves (at most a pixel each of
     # six iterations).
-    mosaic, shift = _smoothed_patches(grey, c[seen], r + 9, _SIGMA * factor)
+    # The patches also hold the circle of the point-symmetry test.
+    half = max(r + 9, int(np.ceil(_ASYMMETRY_CIRCLE * spacing)) + 4)
+    mosaic, shift = _smoothed_patches(grey, c[seen], half, _SIGMA * factor)
     refined, sig = _saddle_fit(mosaic, c[seen] + shift, r)
-    refined -= shift
     out = np.full_like(c, np.nan)
     sigma = np.full(len(c), np.nan)
-    moved = np.hypot(*(refined - c[seen]).T)
+    moved = np.hypot(*(refined - shift - c[seen]).T)
     ok = np.isfinite(moved) & (moved <= factor) & _fits_well(sig)
+    # The point-symmetry test of step 3 again, on the full image's detail, against the board's
+    # own corners: the coarse level's circle blurs an occluder's edge that touches a corner.
+    if ok.any():
+        asym = _asymmetry(mosaic, refined[ok], spacing)
+        limit = min(_MAX_ASYMMETRY, max(_ASYMMETRY_FLOOR, _ASYMMETRY_TIMES * float(np.median(asym))))
+        ok[np.flatnonzero(ok)[asym > limit]] = False
+    refined -= shift
     keep = np.flatnonzero(seen)[ok]
     # The check of step 4 again, at full resolution (a corner drawn onto a finger's edge there).
     gk = np.stack([keep % cols, keep // cols], axis=-1)
@@ -1260,20 +1271,35 @@ _SIGMA_RATIO = 2.0
 #: A refined corner whose surroundings are this far from point-symmetric (mean difference
 #: between opposite points of a circle, over the circle's contrast) is not a clean X-junction.
 _MAX_ASYMMETRY = 0.15
+#: ... and at full resolution, after a board found at a coarser level is refined there, a
+#: corner is also dropped past ``_ASYMMETRY_TIMES`` the board's median asymmetry where that is
+#: over ``_ASYMMETRY_FLOOR``: a finger's tip touching a corner of a 14 MP board (squares of
+#: 85 px) left it 0.136 from symmetric and 1.5 px off, its 25 neighbours at most 0.012
+#: (benchmarks/notes.md, thirty-second session).
+_ASYMMETRY_TIMES = 4.0
+_ASYMMETRY_FLOOR = 0.05
+#: The circle of the point-symmetry test, as a fraction of the corners' spacing (2 px at least).
+_ASYMMETRY_CIRCLE = 0.15
+
+
+def _asymmetry(s: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
+    """How far from point-symmetric the image ``s`` is about each of ``q`` (K, 2): the mean
+    difference between opposite points of a circle of ``_ASYMMETRY_CIRCLE`` of the spacing
+    (2 px at least), over the circle's contrast."""
+    n = 32
+    ang = np.arange(n) * 2 * np.pi / n
+    rad = max(2.0, _ASYMMETRY_CIRCLE * spacing)
+    v = _sample(s, q[:, :1] + rad * np.cos(ang), q[:, 1:] + rad * np.sin(ang), "bilinear")
+    contrast = np.maximum(v.max(axis=1) - v.min(axis=1), 1e-12)
+    return np.abs(v - np.roll(v, n // 2, axis=1)).mean(axis=1) / contrast
 
 
 def _point_symmetric(s: np.ndarray, q: np.ndarray, spacing: float) -> np.ndarray:
-    """Which refined corners ``q`` are point-symmetric X-junctions on a circle of 0.15 of the
-    spacing (2 px at least): a finger or other occluder's edge near a corner breaks the
+    """Which refined corners ``q`` are point-symmetric X-junctions (:func:`_asymmetry` within
+    ``_MAX_ASYMMETRY``): a finger or other occluder's edge near a corner breaks the
     symmetry and pulls the saddle fit off the junction (a pixel and more), while the checks
     against the lattice, which must follow a fisheye's bend, cannot see so small a shift."""
-    n = 32
-    ang = np.arange(n) * 2 * np.pi / n
-    rad = max(2.0, 0.15 * spacing)
-    v = _sample(s, q[:, :1] + rad * np.cos(ang), q[:, 1:] + rad * np.sin(ang), "bilinear")
-    contrast = np.maximum(v.max(axis=1) - v.min(axis=1), 1e-12)
-    asym = np.abs(v - np.roll(v, n // 2, axis=1)).mean(axis=1) / contrast
-    return asym <= _MAX_ASYMMETRY
+    return _asymmetry(s, q, spacing) <= _MAX_ASYMMETRY
 
 
 def _fits_well(sig: np.ndarray) -> np.ndarray:
