@@ -511,8 +511,9 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     # The smoothing scaled by the factor, computed only on a patch around each corner: enough
     # for the fit's window, its bicubic support and the fit's moves (at most a pixel each of
     # six iterations).
-    # The patches also hold the circle of the point-symmetry test.
-    half = max(r + 9, int(np.ceil(_ASYMMETRY_CIRCLE * spacing)) + 4)
+    # The patches also hold the circle of the point-symmetry test about a corner moved by up
+    # to the factor (and the bilinear samples' second pixel).
+    half = max(r + 9, int(np.ceil(max(2.0, _ASYMMETRY_CIRCLE * spacing))) + factor + 2)
     mosaic, shift = _smoothed_patches(grey, c[seen], half, _SIGMA * factor)
     refined, sig = _saddle_fit(mosaic, c[seen] + shift, r)
     out = np.full_like(c, np.nan)
