@@ -33,7 +33,7 @@ from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens.base import CameraModel
 from camkit.target import Checkerboard
 
-__all__ = ["StressView", "acceptable_labellings", "stress_view"]
+__all__ = ["StressView", "acceptable_labellings", "capsule", "stress_view"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -246,6 +246,21 @@ def _background(rng: np.random.Generator, camera: CameraModel, tags: dict[str, A
     return bg
 
 
+def _segment_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Distance of the points (x, y) from the segment a-b (pixels)."""
+    ab = b - a
+    t = np.clip(((x - a[0]) * ab[0] + (y - a[1]) * ab[1]) / (ab @ ab), 0, 1)
+    return np.hypot(x - a[0] - t * ab[0], y - a[1] - t * ab[1])
+
+
+def capsule(shape: tuple[int, int], start: np.ndarray, tip: np.ndarray, width: float) -> np.ndarray:
+    """Coverage (H, W) in [0, 1] of a finger-like capsule of ``width`` pixels whose axis runs
+    from ``start`` to ``tip`` (x, y pixel centres), its edge anti-aliased over one pixel: the
+    occluder the stress corpus draws, for a test that places one by hand."""
+    yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float64)
+    return np.clip(width / 2 - _segment_distance(xx, yy, np.asarray(start, float), np.asarray(tip, float)) + 0.5, 0, 1)
+
+
 def _occluders(rng: np.random.Generator, corners: np.ndarray, square_px: float, H: int, W: int,
                tags: dict[str, Any]) -> tuple[np.ndarray, np.ndarray]:
     """Finger-like capsules reaching over the board from outside it: (alpha (H, W), hidden
@@ -271,13 +286,8 @@ def _occluders(rng: np.random.Generator, corners: np.ndarray, square_px: float, 
         length = rng.uniform(1.0, 3.0) * square_px
         width = rng.uniform(0.5, 1.2) * square_px
         a, b = p0 - d * 2 * square_px, p0 + d * length
-        ab = b - a
-        tt = np.clip(((xx - a[0]) * ab[0] + (yy - a[1]) * ab[1]) / (ab @ ab), 0, 1)
-        dist = np.hypot(xx - a[0] - tt * ab[0], yy - a[1] - tt * ab[1])
-        alpha = np.maximum(alpha, np.clip(width / 2 - dist + 0.5, 0, 1))
-        tc = np.clip(((corners[:, 0] - a[0]) * ab[0] + (corners[:, 1] - a[1]) * ab[1]) / (ab @ ab), 0, 1)
-        dc = np.hypot(corners[:, 0] - a[0] - tc * ab[0], corners[:, 1] - a[1] - tc * ab[1])
-        hidden |= dc < width / 2 + 0.5 * square_px
+        alpha = np.maximum(alpha, np.clip(width / 2 - _segment_distance(xx, yy, a, b) + 0.5, 0, 1))
+        hidden |= _segment_distance(corners[:, 0], corners[:, 1], a, b) < width / 2 + 0.5 * square_px
     tags["occluders"] = n
     return alpha, hidden
 
