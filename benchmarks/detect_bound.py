@@ -23,6 +23,7 @@ import argparse
 import numpy as np
 
 import camkit.render.stress as stress
+from benchmarks.detect_corpus import best_labelling
 from camkit.target import detect_corners
 
 
@@ -56,19 +57,6 @@ def _grey(img: np.ndarray) -> np.ndarray:
     return g.mean(axis=2) if g.ndim == 3 else g
 
 
-def _aligned(v: stress.StressView, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(each returned corner's distance to its true corner, NaN where not returned; the true
-    corners in the returned corners' order), under the labelling that ``score`` picks."""
-    best = None
-    for perm in v.labellings:
-        d = np.hypot(*(corners - v.corners_px[perm]).T)
-        seen = np.isfinite(d)
-        med = float(np.median(d[seen])) if seen.any() else 0.0
-        if best is None or med < best[0]:
-            best = (med, d, v.corners_px[perm])
-    return best[1], best[2]
-
-
 def run(views: int, start: int) -> np.ndarray:
     """Rows (seed, error px, bound sigma per axis px, JPEG quality or 0)."""
     rows = []
@@ -79,7 +67,7 @@ def run(views: int, start: int) -> np.ndarray:
         det = detect_corners(v.image, v.board)
         if not det.found:
             continue
-        d, truth = _aligned(v, det.corners)
+        d, truth = best_labelling(v, det.corners)
         clean = _grey(_clean_view(seed, v.noise).image)
         sigma = float(np.std(_grey(v.image) - clean))
         gy, gx = np.gradient(clean)

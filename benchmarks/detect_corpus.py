@@ -34,17 +34,23 @@ from camkit.render.stress import StressView, stress_view
 from camkit.target import detect_corners
 
 
-def score(view: StressView, corners: np.ndarray) -> tuple[int, np.ndarray]:
-    """(wrong labels, distances of the returned corners to the truth) under the allowed
-    labelling that fits best."""
+def best_labelling(view: StressView, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(each corner's distance to its true corner, NaN where not returned; the true corners in
+    the returned corners' order) under the allowed labelling with the least median distance."""
     best = None
     for perm in view.labellings:
         d = np.hypot(*(corners - view.corners_px[perm]).T)
         seen = np.isfinite(d)
         med = float(np.median(d[seen])) if seen.any() else 0.0
         if best is None or med < best[0]:
-            best = (med, d)
-    d = best[1]
+            best = (med, d, view.corners_px[perm])
+    return best[1], best[2]
+
+
+def score(view: StressView, corners: np.ndarray) -> tuple[int, np.ndarray]:
+    """(wrong labels, distances of the returned corners to the truth) under the allowed
+    labelling that fits best."""
+    d = best_labelling(view, corners)[0]
     seen = np.isfinite(d)
     return int((d[seen] > 1.0).sum()), d[seen]
 
