@@ -33,7 +33,7 @@ from camkit.geometry.rotation import matrix_from_rvec
 from camkit.lens.base import CameraModel
 from camkit.target import Checkerboard
 
-__all__ = ["StressView", "acceptable_labellings", "capsule", "stress_view"]
+__all__ = ["StressView", "acceptable_labellings", "stress_view"]
 
 
 @dataclass(frozen=True, slots=True, eq=False)
@@ -253,7 +253,7 @@ def _segment_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray
     return np.hypot(x - a[0] - t * ab[0], y - a[1] - t * ab[1])
 
 
-def capsule(shape: tuple[int, int], start: np.ndarray, tip: np.ndarray, width: float) -> np.ndarray:
+def _capsule(shape: tuple[int, int], start: np.ndarray, tip: np.ndarray, width: float) -> np.ndarray:
     """Coverage (H, W) in [0, 1] of a finger-like capsule of ``width`` pixels whose axis runs
     from ``start`` to ``tip`` (x, y pixel centres), its edge anti-aliased over one pixel: the
     occluder the stress corpus draws, for a test that places one by hand."""

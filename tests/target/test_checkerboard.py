@@ -212,7 +212,7 @@ def test_a_corner_an_occluder_touches_is_not_taken_from_a_coarser_level(monkeypa
     # 1.04-1.05 px without it, every corner within 0.021 px with it.
     import camkit.target.checkerboard as cb
     from camkit.lens.pinhole import Pinhole
-    from camkit.render.stress import capsule
+    from camkit.render.stress import _capsule
 
     cam = Pinhole(fx=1800.0, fy=1800.0, cx=1199.5, cy=899.5, width=2400, height=1800)
     board = Checkerboard(9, 3, 0.03)
@@ -222,7 +222,7 @@ def test_a_corner_an_occluder_touches_is_not_taken_from_a_coarser_level(monkeypa
     # The finger: a capsule 0.9 of a square wide reaching in along (cos 2.13, sin 2.13) towards corner 8.
     u = np.array([np.cos(2.13), np.sin(2.13)])
     tip = c[8] - u * 0.52 * sq - 0.12 * sq * np.array([-u[1], u[0]])
-    alpha = capsule(img.shape, tip - 3.0 * sq * u, tip, 0.9 * sq)
+    alpha = _capsule(img.shape, tip - 3.0 * sq * u, tip, 0.9 * sq)
     photo = img * (1 - alpha) + 0.6 * alpha + np.random.default_rng(0).normal(0.0, 0.004, img.shape)
 
     det = detect_corners(photo, board)
