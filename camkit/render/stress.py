@@ -256,7 +256,7 @@ def _segment_distance(x: np.ndarray, y: np.ndarray, a: np.ndarray, b: np.ndarray
 def _capsule(shape: tuple[int, int], start: np.ndarray, tip: np.ndarray, width: float) -> np.ndarray:
     """Coverage (H, W) in [0, 1] of a finger-like capsule of ``width`` pixels whose axis runs
     from ``start`` to ``tip`` (x, y pixel centres), its edge anti-aliased over one pixel: the
-    occluder the stress corpus draws, for a test that places one by hand."""
+    occluder the stress corpus draws (:func:`_occluders`), and a test places by hand."""
     yy, xx = np.mgrid[0:shape[0], 0:shape[1]].astype(np.float64)
     return np.clip(width / 2 - _segment_distance(xx, yy, np.asarray(start, float), np.asarray(tip, float)) + 0.5, 0, 1)
 
@@ -274,7 +274,6 @@ def _occluders(rng: np.random.Generator, corners: np.ndarray, square_px: float, 
     lo, hi = c.min(axis=0), c.max(axis=0)
     mid = 0.5 * (lo + hi)
     n = int(rng.integers(1, 4))
-    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
     for _ in range(n):
         # A point on the board's outline, and a direction inwards.
         t = rng.uniform(0, 1)
@@ -286,7 +285,7 @@ def _occluders(rng: np.random.Generator, corners: np.ndarray, square_px: float, 
         length = rng.uniform(1.0, 3.0) * square_px
         width = rng.uniform(0.5, 1.2) * square_px
         a, b = p0 - d * 2 * square_px, p0 + d * length
-        alpha = np.maximum(alpha, np.clip(width / 2 - _segment_distance(xx, yy, a, b) + 0.5, 0, 1))
+        alpha = np.maximum(alpha, _capsule((H, W), a, b, width))
         hidden |= _segment_distance(corners[:, 0], corners[:, 1], a, b) < width / 2 + 0.5 * square_px
     tags["occluders"] = n
     return alpha, hidden
