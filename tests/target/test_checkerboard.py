@@ -92,6 +92,25 @@ def _dim_noisy(img: np.ndarray, contrast: float, noise: float, quality: int | No
     return np.asarray(Image.open(buf))
 
 
+def _board_frames(contrast: float, noise: float, seeds: range) -> tuple[Checkerboard, object, list[np.ndarray]]:
+    """The 9x6 board through the pinhole demo camera (plan_views, seed 0), its truth, and one
+    frame of it per seed through :func:`_dim_noisy` (no JPEG)."""
+    cam = default_camera("pinhole")
+    board = Checkerboard(9, 6, 0.03)
+    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    return board, truth, [_dim_noisy(img, contrast, noise, None, seed) for seed in seeds]
+
+
+def _rms_error(frames: list[np.ndarray], board: Checkerboard, truth) -> float:
+    """RMS corner error over the frames, each of which must give all 54 corners."""
+    err = []
+    for frame in frames:
+        det = detect_corners(frame, board)
+        assert det.found and det.n_found == 54, det.message
+        err.append(det.corners - truth.corners_px)
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+
 def test_corner_sigma_follows_the_noise_and_corners_it_cannot_place_are_dropped():
     # A dim board (a tenth of the range) under noise, raw and through JPEG: each corner's sigma
     # must follow its error's spread over noise draws. The fit's residuals alone read 3.3-3.5
@@ -136,12 +155,7 @@ def test_noisy_corners_move_to_their_point_of_symmetry_and_scatter_less(monkeypa
     img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
 
     def rms(quality):
-        err = []
-        for seed in range(4):
-            det = detect_corners(_dim_noisy(img, 0.1, 0.025, quality, seed), board)
-            assert det.found and det.n_found == 54, det.message
-            err.append(det.corners - truth.corners_px)
-        return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+        return _rms_error([_dim_noisy(img, 0.1, 0.025, quality, seed) for seed in range(4)], board, truth)
 
     with_symmetry = [rms(None), rms(60)]
     monkeypatch.setattr(cb, "_SYM_FROM_SIGMA", np.inf)
@@ -158,22 +172,10 @@ def test_corners_a_few_hundredths_uncertain_move_to_their_point_of_symmetry_too(
     # RMS error 0.049 px with the bar at 0.05, 0.022 at 0.02.
     import camkit.target.checkerboard as cb
 
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
-    frames = [_dim_noisy(img, 0.3, 0.02, None, seed) for seed in range(4)]
-
-    def rms():
-        err = []
-        for frame in frames:
-            det = detect_corners(frame, board)
-            assert det.found and det.n_found == 54, det.message
-            err.append(det.corners - truth.corners_px)
-        return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
-
-    low_bar = rms()
+    board, truth, frames = _board_frames(0.3, 0.02, range(4))
+    low_bar = _rms_error(frames, board, truth)
     monkeypatch.setattr(cb, "_SYM_FROM_SIGMA", 0.05)
-    assert low_bar < 0.6 * rms(), low_bar
+    assert low_bar < 0.6 * _rms_error(frames, board, truth), low_bar
 
 
 def test_noise_limited_corners_read_their_symmetry_out_to_most_of_a_square(monkeypatch):
@@ -213,10 +215,7 @@ def test_a_noisy_saddle_point_over_half_a_pixel_off_gives_way_to_its_point_of_sy
     # 20 -> 11, RMS 0.174 -> 0.156 px, 418 -> 422 corners returned.
     import camkit.target.checkerboard as cb
 
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
-    frames = [_dim_noisy(img, 0.1, 0.035, None, seed) for seed in range(8)]
+    board, truth, frames = _board_frames(0.1, 0.035, range(8))
 
     def errors():
         d = np.concatenate([np.hypot(*(detect_corners(f, board).corners - truth.corners_px).T) for f in frames])
