@@ -61,9 +61,7 @@ def test_simulated_views_calibrate_to_the_truth():
 
 
 def test_input_kinds_and_no_board():
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    board, img, truth = _demo_view()
     u8 = (img * 255).round().astype(np.uint8)
     for variant in (u8, (img * 65535).round().astype(np.uint16), np.dstack([u8] * 3), img.astype(np.float32)):
         det = detect_corners(variant, board)
@@ -74,6 +72,15 @@ def test_input_kinds_and_no_board():
     assert not det.found and "not found" in det.message and np.isnan(det.corners).all()
     assert not detect_corners(np.full((480, 640), 128, np.uint8), board).found
 
+
+
+def _demo_view() -> tuple[Checkerboard, np.ndarray, object]:
+    """The 9x6 board of 30 mm squares through the pinhole demo camera, in the first pose
+    ``plan_views`` draws from seed 0: (board, noise-free render, its truth)."""
+    cam = default_camera("pinhole")
+    board = Checkerboard(9, 6, 0.03)
+    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    return board, img, truth
 
 
 def _dim_noisy(img: np.ndarray, contrast: float, noise: float, quality: int | None, seed: int) -> np.ndarray:
@@ -93,11 +100,9 @@ def _dim_noisy(img: np.ndarray, contrast: float, noise: float, quality: int | No
 
 
 def _board_frames(contrast: float, noise: float, seeds: range) -> tuple[Checkerboard, object, list[np.ndarray]]:
-    """The 9x6 board through the pinhole demo camera (plan_views, seed 0), its truth, and one
-    frame of it per seed through :func:`_dim_noisy` (no JPEG)."""
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    """:func:`_demo_view`'s board, its truth, and one frame of its render per seed through
+    :func:`_dim_noisy` (no JPEG)."""
+    board, img, truth = _demo_view()
     return board, truth, [_dim_noisy(img, contrast, noise, None, seed) for seed in seeds]
 
 
@@ -116,9 +121,7 @@ def test_corner_sigma_follows_the_noise_and_corners_it_cannot_place_are_dropped(
     # must follow its error's spread over noise draws. The fit's residuals alone read 3.3-3.5
     # times low here (13 times on the dimmest board below), because they take the smoothed
     # noise as independent; measured with the noise's share: 0.87-1.21.
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    board, img, truth = _demo_view()
     for quality in (None, 60):
         err, sig = [], []
         for seed in range(3):
@@ -150,9 +153,7 @@ def test_noisy_corners_move_to_their_point_of_symmetry_and_scatter_less(monkeypa
     # 0.127 through JPEG 60, 0.093 -> 0.052 at twice the contrast.
     import camkit.target.checkerboard as cb
 
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    board, img, truth = _demo_view()
 
     def rms(quality):
         return _rms_error([_dim_noisy(img, 0.1, 0.025, quality, seed) for seed in range(4)], board, truth)
@@ -185,9 +186,7 @@ def test_noise_limited_corners_read_their_symmetry_out_to_most_of_a_square(monke
     # 0.035; error over sigma 1.09-1.11 (0.91 before: the sigma stays honest).
     import camkit.target.checkerboard as cb
 
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    board, img, truth = _demo_view()
     frames = [_dim_noisy(img, 0.1, noise, None, seed) for noise in (0.025, 0.035) for seed in range(4)]
 
     def measure():
@@ -294,9 +293,7 @@ def test_a_jpeg_flattened_board_reads_its_noise_beside_the_corners(monkeypatch):
 
     import camkit.target.checkerboard as cb
 
-    cam = default_camera("pinhole")
-    board = Checkerboard(9, 6, 0.03)
-    img, truth = render_checkerboard(cam, plan_views(cam, board, 1, np.random.default_rng(0))[0], board)
+    board, img, truth = _demo_view()
     u8 = np.clip((0.5 + 0.1 * (gaussian_filter(img, 2.0) - 0.5)) * 255 + 0.5, 0, 255).astype(np.uint8)
 
     def errors(quality):
