@@ -26,40 +26,44 @@ _BAND = 64
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray) -> None:  # pragma: no cover - numba
+def gaussian_blur(img: np.ndarray, sigma: float, out: np.ndarray, x0: int = 0,
+                  y0: int = 0) -> None:  # pragma: no cover - numba
     """Separable Gaussian (radius 3 sigma, edges replicated), rows then columns, band by band
     of rows (each band's row pass, with its margins, stays in cache for its column pass).
     Each pass adds tap after tap along whole rows (the inner loop runs along x, contiguous,
-    so it is vectorised), each pixel's sum in tap order, as a pixel-by-pixel loop adds it."""
+    so it is vectorised), each pixel's sum in tap order, as a pixel-by-pixel loop adds it.
+    ``out`` may be a box of the result only: the box of its shape whose top-left pixel is
+    (``x0``, ``y0``) of ``img`` (the same values as there in the whole image's result)."""
     H, W = img.shape
+    h, w = out.shape
     k = gaussian_taps(sigma)
     R = k.shape[0] // 2
-    nb = (H + _BAND - 1) // _BAND
+    nb = (h + _BAND - 1) // _BAND
     for b in prange(nb):
-        y0 = b * _BAND
-        y1 = min(y0 + _BAND, H)
-        lo = max(y0 - R, 0)
-        hi = min(y1 + R, H)
-        tmp = np.empty((hi - lo, W))
-        row = np.empty(W + 2 * R)
+        ya = b * _BAND
+        yb = min(ya + _BAND, h)
+        lo = max(y0 + ya - R, 0)
+        hi = min(y0 + yb + R, H)
+        tmp = np.empty((hi - lo, w))
+        row = np.empty(w + 2 * R)
         for y in range(lo, hi):
-            for x in range(W + 2 * R):
-                row[x] = img[y, min(max(x - R, 0), W - 1)]
+            for x in range(w + 2 * R):
+                row[x] = img[y, min(max(x0 + x - R, 0), W - 1)]
             acc = tmp[y - lo]
-            for x in range(W):
+            for x in range(w):
                 acc[x] = 0.0
             for i in range(2 * R + 1):
                 ki = k[i]
-                for x in range(W):
+                for x in range(w):
                     acc[x] += ki * row[x + i]
-        for y in range(y0, y1):
+        for y in range(ya, yb):
             acc = out[y]
-            for x in range(W):
+            for x in range(w):
                 acc[x] = 0.0
             for i in range(2 * R + 1):
                 ki = k[i]
-                src = tmp[min(max(y + i - R, 0), H - 1) - lo]
-                for x in range(W):
+                src = tmp[min(max(y0 + y + i - R, 0), H - 1) - lo]
+                for x in range(w):
                     acc[x] += ki * src[x]
 
 
@@ -188,21 +192,20 @@ def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, f
     y0 = math.floor(y)
     fx = x - x0
     fy = y - y0
-    v = np.empty((4, 4))  # rows y0 - 1 .. y0 + 2, columns x0 - 1 .. x0 + 2
-    for j in range(4):
-        for i in range(4):
-            v[j, i] = img[y0 - 1 + j, x0 - 1 + i]
-    # The bilinear weights of the 2x2 cell, applied to the value and to the central differences.
+    # The bilinear weights of the 2x2 cell, applied to the value and to the central differences
+    # (pixels read in place: a 4x4 scratch array here was a heap allocation per sample).
     val = 0.0
     gx = 0.0
     gy = 0.0
     for j in range(2):
         wy = fy if j == 1 else 1.0 - fy
+        yj = y0 + j
         for i in range(2):
             w = wy * (fx if i == 1 else 1.0 - fx)
-            val += w * v[j + 1, i + 1]
-            gx += w * 0.5 * (v[j + 1, i + 2] - v[j + 1, i])
-            gy += w * 0.5 * (v[j + 2, i + 1] - v[j, i + 1])
+            xi = x0 + i
+            val += w * img[yj, xi]
+            gx += w * 0.5 * (img[yj, xi + 1] - img[yj, xi - 1])
+            gy += w * 0.5 * (img[yj + 1, xi] - img[yj - 1, xi])
     return val, gx, gy
 
 

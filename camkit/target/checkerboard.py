@@ -900,6 +900,46 @@ def _split_map(mapped: np.ndarray, k: int, scale: float) -> tuple[np.ndarray, ..
     return a, b, usable, mapped[:, 0], du, dv
 
 
+class _SmoothedCrop:
+    """The image smoothed by a Gaussian (:func:`camkit._kernels.detect.gaussian_blur`) over the
+    part of it that point searches read: :meth:`covering` smooths the box around the points
+    (``reach`` px of samples each way, ``_CROP_WANDER`` px for the search's steps and the
+    kernel's 3 px of border) once, and again only where a later call reaches outside it. Its
+    pixels are the whole image's smoothed pixels. A 12 MP photo's board covers a part of the
+    frame, and its corners were each tried on the whole frame smoothed."""
+
+    def __init__(self, grey: np.ndarray, sigma: float) -> None:
+        self.grey, self.sigma = np.ascontiguousarray(grey, dtype=np.float64), sigma
+        self.box: tuple[int, int, int, int] | None = None  # x0, y0, x1, y1 (exclusive)
+        self.img = np.empty((0, 0))
+
+    def covering(self, pts: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+        """(smoothed box, its origin (x, y) in the image) covering ``pts`` (K, 2) ``reach`` px each way."""
+        H, W = self.grey.shape
+        m = reach + _CROP_WANDER + 3
+        with np.errstate(invalid="ignore"):
+            lo = np.nanmin(pts, axis=0, initial=np.inf) - m
+            hi = np.nanmax(pts, axis=0, initial=-np.inf) + m
+        want = (int(np.clip(np.floor(lo[0]), 0, W)), int(np.clip(np.floor(lo[1]), 0, H)),
+                int(np.clip(np.ceil(hi[0]) + 1, 0, W)), int(np.clip(np.ceil(hi[1]) + 1, 0, H)))
+        box = self.box
+        if box is None or not (box[0] <= want[0] and box[1] <= want[1] and box[2] >= want[2] and box[3] >= want[3]):
+            if box is not None:
+                want = (min(box[0], want[0]), min(box[1], want[1]), max(box[2], want[2]), max(box[3], want[3]))
+            self.img = np.empty((max(want[3] - want[1], 0), max(want[2] - want[0], 0)))
+            if self.img.size:
+                detect_kernels.gaussian_blur(self.grey, self.sigma, self.img, want[0], want[1])
+            self.box = want
+        return self.img, np.array(self.box[:2], dtype=np.float64)
+
+
+#: How far (px) a point search of :func:`_symmetric` may step from its start and still read
+#: the pixels :class:`_SmoothedCrop` smoothed for it (a search that walks further is treated
+#: as one that left the image: no point; it would lie beyond ``_SYM_AGREE_PX`` of its start
+#: unless it came back).
+_CROP_WANDER = 4.0
+
+
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
                white: float, unit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step 9 of :func:`detect_corners`: each corner moved to the point through which the image
@@ -951,17 +991,23 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     a, b, use = a[usable], b[usable], idx[usable]
     if len(use) == 0:
         return corners, sigma
-    img = np.empty(grey.shape)
-    detect_kernels.gaussian_blur(np.ascontiguousarray(grey, dtype=np.float64), _SYM_SMOOTHING, img)
     taps = detect_kernels.gaussian_taps(_SYM_SMOOTHING)
+    smoothed = _SmoothedCrop(grey, _SYM_SMOOTHING)
+    # The first box smoothed covers the wider second search too (its maps, fitted on other
+    # corners, may reach a little further: a fifth more).
+    narrow = max(np.abs(a).max(initial=0.0), np.abs(b).max(initial=0.0))
+    wide_reach = 1.2 * narrow * max(_SYM_WIDE_REACH / _SYM_REACH, 1.0)
 
     def refine(k: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The corners ``use[k]`` at their point of symmetry on the maps ``a``, ``b``: (points,
         sigma, the white noise their residuals imply)."""
         p, cv, wr = np.empty((len(k), 2)), np.empty((len(k), 3)), np.empty(len(k))
-        detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[k]]), np.ascontiguousarray(a),
-                                       np.ascontiguousarray(b), np.full(len(k), a.shape[1], dtype=np.int64),
-                                       20, 1e-3, p, cv, wr)
+        img, origin = smoothed.covering(corners[use[k]], max(np.abs(a).max(initial=0.0), np.abs(b).max(initial=0.0),
+                                                             wide_reach))
+        detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[k]] - origin),
+                                       np.ascontiguousarray(a), np.ascontiguousarray(b),
+                                       np.full(len(k), a.shape[1], dtype=np.int64), 20, 1e-3, p, cv, wr)
+        p += origin
         with np.errstate(invalid="ignore"):
             return p, np.sqrt(0.5 * (cv[:, 0] + cv[:, 2])) * np.fmax(wr, white), wr
 

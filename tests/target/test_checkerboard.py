@@ -879,7 +879,8 @@ def test_scale_the_same_photos_from_320x240_to_12_mp(shared_data, size):
 def test_gaussian_blur_is_the_separable_gaussian_with_edges_replicated(shape, sigma):
     """The whole-image blur (run band by band of 64 rows: shapes across, along and under a
     band's edges, and narrower than the kernel) equals SciPy's correlation with the same
-    normalised taps (out to 3 sigma), rows then columns, edges replicated."""
+    normalised taps (out to 3 sigma), rows then columns, edges replicated; a box of it
+    computed alone equals the same box of the whole."""
     from scipy.ndimage import correlate1d
 
     from camkit._kernels import detect as detect_kernels
@@ -892,6 +893,14 @@ def test_gaussian_blur_is_the_separable_gaussian_with_edges_replicated(shape, si
     out = np.empty_like(img)
     detect_kernels.gaussian_blur(img, sigma, out)
     np.testing.assert_allclose(out, ref, atol=1e-13, rtol=0)
+    # A box of the result alone (step 9 smooths only around the board) is that box of the
+    # whole result, to the bit: at the image's edges, inside it, and across a band's edge.
+    H, W = shape
+    for x0, y0, w, h in [(0, 0, W, H), (0, 0, (W + 1) // 2, (H + 1) // 2), (W // 3, H // 4, W - W // 3, H // 2),
+                         (W - 1, H - 1, 1, 1), (W // 2, max(H - 70, 0), W // 2 or 1, min(H, 70))]:
+        box = np.empty((h, w))
+        detect_kernels.gaussian_blur(img, sigma, box, x0, y0)
+        np.testing.assert_array_equal(box, out[y0:y0 + h, x0:x0 + w], err_msg=str((x0, y0, w, h)))
 
 
 def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
