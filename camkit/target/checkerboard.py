@@ -1256,13 +1256,18 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
         # Along an axis where the lattice is shorter than the board, a side beyond which the
         # lattice had corners that the checks dropped (a fisheye's rim bends them off the
         # neighbours' map) is where the board goes on, whatever the shades past it say: those
-        # shades were read on the dropped corners' squares (real fisheye 23, blurred).
+        # shades were read on the dropped corners' squares (real fisheye 23, blurred). Two of
+        # them at least (or the whole side where it is one corner long): one X-corner of
+        # something else linked at the lattice's end (a second board touching it, a blurred
+        # junction) is not the board going on, and it turned a side seen to end into one
+        # that goes on (benchmarks/notes.md, thirty-fifth session).
         dk = dropped - gt[keep_t].min(axis=0)
         for ax in (0, 1):
             if gk[:, ax].max() + 1 < tgt[ax]:
-                if (dk[:, ax] < 0).any():
+                need = min(2, int(gk[:, 1 - ax].max()) + 1)
+                if (dk[:, ax] < 0).sum() >= need:
                     sides[(ax, -1)] = "more"
-                if (dk[:, ax] > gk[:, ax].max()).any():
+                if (dk[:, ax] > gk[:, ax].max()).sum() >= need:
                     sides[(ax, 1)] = "more"
         for ax in (0, 1):
             if trimmed[ax]:
