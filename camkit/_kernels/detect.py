@@ -221,8 +221,8 @@ def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.n
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
-                    iters: int, tol: float, out: np.ndarray, cov: np.ndarray,
-                    wres: np.ndarray) -> None:  # pragma: no cover - numba
+                    iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
+                    normal: np.ndarray) -> None:  # pragma: no cover - numba
     """Move each point to where the image is point-symmetric through it: Gauss-Newton on the
     translation t of ``sum_i (I(p + t + a_i) - I(p + t + b_i))^2`` over its ``m[k]`` pairs of
     offsets ``a[k, i]``, ``b[k, i]`` (px; b the mirror image of a through the point on the
@@ -235,7 +235,9 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
     point's covariance per unit white pixel noise (the linearised estimator's, through the
     bilinear weights of both samples of every pair and the smoothing), and ``wres[k]``: the
     white pixel noise that the final residuals would imply (their sum of squares over the sum
-    of the squared weights they carry, the smoothing's sum of squared weights included)."""
+    of the squared weights they carry, the smoothing's sum of squared weights included), and
+    ``normal[k]`` = (xx, xy, yy) of the normal matrix J^T J at the solution (its gradients are
+    read on the noisy image, so the noise adds to it: the caller weighs that share)."""
     H, W = img.shape
     R = taps.shape[0] // 2
     t2 = 0.0
@@ -248,6 +250,9 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         cov[k, 1] = np.nan
         cov[k, 2] = np.nan
         wres[k] = np.nan
+        normal[k, 0] = np.nan
+        normal[k, 1] = np.nan
+        normal[k, 2] = np.nan
         n = m[k]
         if n < 3:
             continue
@@ -376,6 +381,9 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         cov[k, 1] = cxy
         cov[k, 2] = cyy
         wres[k] = math.sqrt(rr / (ww * t2 * t2)) if ww > 0.0 else np.nan
+        normal[k, 0] = sxx
+        normal[k, 1] = sxy
+        normal[k, 2] = syy
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

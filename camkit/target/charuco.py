@@ -137,6 +137,7 @@ from camkit.target.checkerboard import (
     _sample,
     _smoothed_patches,
     _split_map,
+    _symmetry_sigma,
     _to_grey,
 )
 
@@ -512,7 +513,7 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.nd
             if ref is not None and np.isfinite(ref[3]).any():
                 level = max(noise, float(np.nanmedian(ref[3])))
         with np.errstate(invalid="ignore"):
-            sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, noise)
+            sigma = _symmetry_sigma(cov[:, :3], cov[:, 3:], wres, noise, _map_ends(spacing, reach)[1])
             ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre).T) <= 0.15 * size)
                   & (wres <= 2.0 * level + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
         if ok.any():
@@ -542,11 +543,12 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
     symmetry out to ``reach`` squares on its neighbours' local map (with the corner itself
     where ``centre_known``), started from the map's centre (or from ``start``, (len(idx), 2),
     each within 0.15 of a square of it): ``(which of idx, place, covariance (xx, xy, yy) per
-    unit noise, residuals' noise, the map's centre, a square's steps along the board's x and
-    y, the smaller step's length)``, for the corners with a map whose
-    samples lie inside the image and squares of 6 px or more; None where none has. With the
-    ``board`` and its confirmed markers' ``quads``, a corner with too few neighbours for a
-    map has one from its neighbours and its markers' corners (:func:`_marker_maps`)."""
+    unit noise and the normal matrix (xx, xy, yy) side by side (K, 6), residuals' noise, the
+    map's centre, a square's steps along the board's x and y, the smaller step's length)``,
+    for the corners with a map whose samples lie inside the image and squares of 6 px or
+    more; None where none has. With the ``board`` and its confirmed markers' ``quads``, a
+    corner with too few neighbours for a map has one from its neighbours and its markers'
+    corners (:func:`_marker_maps`)."""
     H, W = full.shape
     a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=centre_known, only=idx)
     if board is not None and quads and not usable.all():
@@ -568,17 +570,18 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
     pos = np.empty((len(sel), 2))
     cov = np.empty((len(sel), 3))
     wres = np.empty(len(sel))
+    normal = np.empty((len(sel), 3))
     detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
                                    np.ascontiguousarray(p0 + shift), np.ascontiguousarray(a),
                                    np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
-                                   20, 1e-3, pos, cov, wres)
+                                   20, 1e-3, pos, cov, wres, normal)
     if start is not None:
         # Each patch holds the samples of points within 0.15 of a square of its start
         # (``extent``); one that ends farther from a start that is not the map's centre (which
         # the caller's test bounds) read pixels of the next patch.
         with np.errstate(invalid="ignore"):
             pos[np.hypot(*(pos - shift - p0).T) > 0.15 * size] = np.nan
-    return idx[sel], pos - shift, cov, wres, centre, du, dv, size
+    return idx[sel], pos - shift, np.concatenate([cov, normal], axis=1), wres, centre, du, dv, size
 
 
 def _marker_maps(board: Charuco, out: np.ndarray, idx: np.ndarray, quads: dict[int, np.ndarray], spacing: float,

@@ -753,6 +753,45 @@ _SYM_BLOCK_NOISE = 1.5
 _SYM_AGREE_PX = 1.0
 
 
+#: The symmetric point's normal matrix is read on the noisy image, and the gradients' noise
+#: adds to it (about ``2 pairs c noise^2`` on its diagonal, :func:`_gradient_noise`): its
+#: sigma is divided by the root of the signal's share, and where the noise's share is this or
+#: more the point has no sigma and does not move (the fit follows the noise: a dim board under
+#: noise of half its contrast gave points 0.6-2.6 px off with sigmas of 0.12-0.25 px, the share
+#: 0.8-1.1; on the stress corpus's seeds 0-150 every share was under 0.2 and the sigmas held,
+#: benchmarks/notes.md, thirty-fifth session).
+_SYM_MAX_NOISE_SHARE = 0.5
+
+
+@functools.lru_cache(maxsize=8)
+def _gradient_noise(smoothing: float) -> float:
+    """The variance, per unit white pixel noise, of one gradient sample of
+    :func:`camkit._kernels.detect.symmetry_refine` (the bilinear interpolant of the central
+    differences of the image smoothed by ``smoothing``), averaged over the sample's place
+    within its pixel: its weights on the pixels are separable, so their sum of squares is the
+    product of the two axes'."""
+    taps = detect_kernels.gaussian_taps(smoothing)
+    f = (np.arange(8) + 0.5) / 8
+    along = [np.sum(np.convolve(np.convolve([1 - t, t], [0.5, 0.0, -0.5]), taps) ** 2) for t in f]
+    across = [np.sum(np.convolve([1 - t, t], taps) ** 2) for t in f]
+    return float(np.mean(along) * np.mean(across))
+
+
+def _symmetry_sigma(cov: np.ndarray, normal: np.ndarray, wres: np.ndarray, noise: float | np.ndarray,
+                    pairs: int | np.ndarray, smoothing: float = _SYM_SMOOTHING) -> np.ndarray:
+    """The sigma (px) of points of :func:`camkit._kernels.detect.symmetry_refine` (its ``cov``,
+    ``normal`` and ``wres``, ``pairs`` pairs each): the linearised estimator's per unit noise
+    times the larger of the white pixel noise ``noise`` and what the residuals imply, over the
+    root of the signal's share of the normal matrix; NaN where the noise's share reaches
+    ``_SYM_MAX_NOISE_SHARE``. The share counts ``noise`` alone: the residuals carry the
+    model's misfit too (a real photo's print and lens), which is in the image's gradients as
+    signal, not noise."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = 2.0 * pairs * _gradient_noise(smoothing) * noise ** 2 / (0.5 * (normal[:, 0] + normal[:, 2]))
+        sigma = np.sqrt(0.5 * (cov[:, 0] + cov[:, 2])) * np.fmax(wres, noise) / np.sqrt(1.0 - share)
+        return np.where(share < _SYM_MAX_NOISE_SHARE, sigma, np.nan)
+
+
 def _quad_basis(x: np.ndarray) -> np.ndarray:
     """The quadratic monomials 1, u, v, u^2, u v, v^2 of board offsets ``x`` (..., 2): (..., 6)."""
     u, v = x[..., 0], x[..., 1]
@@ -1001,15 +1040,14 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     def refine(k: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The corners ``use[k]`` at their point of symmetry on the maps ``a``, ``b``: (points,
         sigma, the white noise their residuals imply)."""
-        p, cv, wr = np.empty((len(k), 2)), np.empty((len(k), 3)), np.empty(len(k))
+        p, cv, wr, nm = np.empty((len(k), 2)), np.empty((len(k), 3)), np.empty(len(k)), np.empty((len(k), 3))
         img, origin = smoothed.covering(corners[use[k]], max(np.abs(a).max(initial=0.0), np.abs(b).max(initial=0.0),
                                                              wide_reach))
         detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[k]] - origin),
                                        np.ascontiguousarray(a), np.ascontiguousarray(b),
-                                       np.full(len(k), a.shape[1], dtype=np.int64), 20, 1e-3, p, cv, wr)
+                                       np.full(len(k), a.shape[1], dtype=np.int64), 20, 1e-3, p, cv, wr, nm)
         p += origin
-        with np.errstate(invalid="ignore"):
-            return p, np.sqrt(0.5 * (cv[:, 0] + cv[:, 2])) * np.fmax(wr, white), wr
+        return p, _symmetry_sigma(cv, nm, wr, white, a.shape[1]), wr
 
     pos, sym_sigma, wres = refine(np.arange(len(use)), a, b)
     out, sig = corners.copy(), sigma.copy()
