@@ -432,8 +432,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
        checkerboard is about each inner corner (:func:`_symmetric`, after Schoeps et al.,
        CVPR 2020): it reads the squares' edges along their length where the saddle fit reads
-       a few pixels, so the noise moves it less, and the corner takes its sigma. Where the two
-       estimates disagree beyond their sigmas the saddle point stays. Below 0.02 px (twice
+       a few pixels, so the noise moves it less, and the corner takes its sigma (which counts
+       the noise in the gradients the fit reads: where that noise is half of them, the point
+       has none). Where the two estimates disagree beyond their sigmas the saddle point stays. Below 0.02 px (twice
        the symmetric point's own error on noise-free renders) the saddle point stays too:
        noise is not what limits such a corner, and on clean real photos the two estimators
        differ systematically (benchmarks/notes.md, fourteenth session). Where the noise is
@@ -999,9 +1000,12 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     saddle fit's, step 8) passes ``_SYM_FROM_SIGMA``. Its sigma is the linearised
     estimator's through the smoothing and the bilinear weights, times the larger of the
     board's white noise ``white`` and what the final residuals imply (model misfit, an
-    occluder in the window). The saddle point stays where the symmetric point lies more
-    than three of their combined sigmas and a tenth of a pixel from it, or more than
-    ``_SYM_AGREE_PX``, or cannot be placed (a sample outside the image, fewer than five neighbours).
+    occluder in the window), over the root of the signal's share of its normal matrix
+    (:func:`_symmetry_sigma`: the noise in the gradients adds to it; where the noise makes
+    half of it, the fit follows the noise and the point has no sigma). The saddle point
+    stays where the symmetric point lies more than three of their combined sigmas and a
+    tenth of a pixel from it, or more than ``_SYM_AGREE_PX``, or cannot be placed (a sample
+    outside the image, fewer than five neighbours).
     A corner so moved that lies in a whole 3x3 block of found corners is fitted again out to
     ``_SYM_WIDE_REACH`` of a square (the board is point-symmetric about an inner corner out
     to a whole square each way; the noise moves a fit over more of the edges less), on that

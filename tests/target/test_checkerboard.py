@@ -979,6 +979,34 @@ def test_gaussian_blur_is_the_separable_gaussian_with_edges_replicated(shape, si
         np.testing.assert_array_equal(box, out[y0:y0 + h, x0:x0 + w], err_msg=str((x0, y0, w, h)))
 
 
+def test_smoothed_crop_is_the_whole_image_smoothed_where_the_searches_read():
+    """Step 9 smooths only the box its point searches read (``_SmoothedCrop``): the box
+    covers the points, the reach, the searches' steps and the kernel's border, clipped to
+    the image; a later call that reaches outside it grows it to the union; inside it the
+    pixels are the whole image's smoothed pixels, bit for bit."""
+    from camkit._kernels import detect as detect_kernels
+    from camkit.target.checkerboard import _CROP_WANDER, _SmoothedCrop
+
+    img = np.random.default_rng(8).uniform(size=(150, 170))
+    whole = np.empty_like(img)
+    detect_kernels.gaussian_blur(img, 1.0, whole)
+    crop = _SmoothedCrop(img, 1.0)
+    m = 10.0 + _CROP_WANDER + 3
+    for pts, box in [(np.array([[60.0, 50.0], [80.5, 70.2]]), None),  # inside
+                     (np.array([[60.0, 50.0]]), "same"),  # inside the first: not smoothed again
+                     (np.array([[5.0, 140.0]]), None)]:  # at the edges: clipped, grown to the union
+        before = crop.box
+        part, origin = crop.covering(pts, 10.0)
+        x0, y0 = origin.astype(int)
+        if box == "same":
+            assert crop.box == before
+        assert x0 <= pts[:, 0].min() - m or x0 == 0
+        assert y0 <= pts[:, 1].min() - m or y0 == 0
+        assert x0 + part.shape[1] >= min(pts[:, 0].max() + m, 170) and y0 + part.shape[0] >= min(pts[:, 1].max() + m, 150)
+        np.testing.assert_array_equal(part, whole[y0:y0 + part.shape[0], x0:x0 + part.shape[1]])
+    assert crop.box[0] == 0 and crop.box[3] == 150 and crop.box[2] >= 80.5 + m  # the union of all three
+
+
 def test_patch_blur_and_point_sampling_match_the_whole_image_kernels():
     """The detector's shortcuts agree with the kernels they stand for: the Gaussian blur of
     patches (their margins read from the image, edges replicated) equals the whole image
