@@ -324,22 +324,28 @@ def _symmetric_junction(shape, centre, A, blur, contrast=0.2):
     return 0.5 + 0.5 * contrast * erf(d[..., 0] / blur) * erf(d[..., 1] / blur)
 
 
-def test_symmetry_refine_finds_the_centre_and_its_sigma_is_the_scatter():
-    from camkit._kernels import detect as k
-
-    A = np.array([[18.0, 5.0], [-3.0, 15.0]])  # a sheared square of about 16 px
+def _mirrored_pairs():
+    """A sheared square of about 16 px (board units to pixels), a centre off the pixel grid and
+    the half grid of mirrored offsets out to 0.3 of a square: (A, centre, a, b, m) as
+    symmetry_refine takes them for one point."""
+    A = np.array([[18.0, 5.0], [-3.0, 15.0]])
     centre = np.array([40.37, 35.81])
     t = np.linspace(-0.3, 0.3, 17)
     u = np.stack(np.meshgrid(t, t), axis=-1).reshape(-1, 2)
     u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
-    a = (u @ A.T)[None]
-    b = -a
-    m = np.array([a.shape[1]])
+    a = np.ascontiguousarray((u @ A.T)[None])
+    return A, centre, a, np.ascontiguousarray(-a), np.array([a.shape[1]])
 
-    def run(img, taps, start, with_normal=False):
+
+def test_symmetry_refine_finds_the_centre_and_its_sigma_is_the_scatter():
+    from camkit._kernels import detect as k
+
+    A, centre, a, b, m = _mirrored_pairs()
+
+    def run(img, taps, start):
         out, cov, wres, normal = np.empty((1, 2)), np.empty((1, 3)), np.empty(1), np.empty((1, 3))
         k.symmetry_refine(img, taps, np.array([start], dtype=float), a, b, m, 20, 1e-4, out, cov, wres, normal)
-        return (out[0], cov[0], wres[0]) + ((normal[0],) if with_normal else ())
+        return out[0], cov[0], wres[0]
 
     clean = _symmetric_junction((80, 90), centre, A, 0.08)
     for taps in (np.array([1.0]), k.gaussian_taps(1.0)):
@@ -385,14 +391,7 @@ def test_symmetric_sigma_counts_the_noise_in_the_gradients():
     from camkit._kernels import detect as k
     from camkit.target.checkerboard import _SYM_MAX_NOISE_SHARE, _gradient_noise, _symmetry_sigma
 
-    A = np.array([[18.0, 5.0], [-3.0, 15.0]])
-    centre = np.array([40.37, 35.81])
-    t = np.linspace(-0.3, 0.3, 17)
-    u = np.stack(np.meshgrid(t, t), axis=-1).reshape(-1, 2)
-    u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
-    a = np.ascontiguousarray((u @ A.T)[None])
-    b = np.ascontiguousarray(-a)
-    m = np.array([a.shape[1]])
+    A, centre, a, b, m = _mirrored_pairs()
     taps = k.gaussian_taps(1.0)
     clean = _symmetric_junction((80, 90), centre, A, 0.25)  # edges blurred over a quarter of a square
     rng = np.random.default_rng(11)
@@ -834,36 +833,27 @@ def test_a_blurred_fisheye_view_whose_rim_column_the_check_drops_keeps_its_label
     assert wrong == 0 and med < 0.3, (med, wrong)
 
 
-def test_one_stray_corner_past_a_seen_border_does_not_turn_it_into_more_board():
-    """Issue 21 item 2 on a view the corpus does not draw (benchmarks/detect_probe.py): stress
-    view 3046 through lateral chromatic aberration, a Bayer mosaic and demosaicing. Its 8x10
-    board lies small and steep beside a larger 12x3 board, of which a strip of 3 x 10 corners
-    is in view, its border seen on both long sides; one X-corner by the small board linked to
-    the strip's end and the checks dropped it. A single dropped corner marked that side as
-    the board going on, and the strip came back as columns 5-7 of the 8x10 board (27 corners
-    wrong by 15-470 px). Dropped corners now mark a side only two at a time."""
+@pytest.mark.parametrize(("seed", "alteration"), [(3046, "bayer_ca"), (3073, "noise")])
+def test_probe_views_that_returned_wrong_corners(seed, alteration):
+    """Issue 21 item 2 on views the corpus does not draw (benchmarks/detect_probe.py); each
+    returned corners over a pixel from the true corner of their label, and now returns none.
+
+    - 3046 through lateral chromatic aberration, a Bayer mosaic and demosaicing: its 8x10
+      board lies small and steep beside a larger 12x3 board, of which a strip of 3 x 10
+      corners is in view, its border seen on both long sides. One X-corner by the small board
+      linked to the strip's end and the checks dropped it; a single dropped corner marked that
+      side as the board going on, and the strip came back as columns 5-7 of the 8x10 board (27
+      corners wrong by 15-470 px). Dropped corners now mark a side only two at a time.
+    - 3073 (a backlit 9x4 board, blurred) under added noise of 5-12 % of the range: saddle
+      points 0.7-1.4 px uncertain moved to points of symmetry that claimed 0.12-0.25 px, the
+      noise making most of the symmetric fit's normal matrix (its share 0.8-1.1): two corners
+      kept lay over a pixel off. Such points now have no sigma and do not move."""
     from benchmarks.detect_corpus import score
     from benchmarks.detect_probe import alter
     from camkit.render.stress import stress_view
 
-    v = stress_view(3046, megapixels=(0.1, 2))
-    det = detect_corners(alter(v, 3046, "bayer_ca"), v.board)
-    assert not det.found or score(v, det.corners)[0] == 0, det.message
-
-
-def test_a_symmetric_point_that_follows_the_noise_is_not_returned():
-    """Issue 21 item 2 on a view the corpus does not draw (benchmarks/detect_probe.py): stress
-    view 3073 (a backlit 9x4 board, blurred) under added noise of 5-12 % of the range. Its
-    saddle points were 0.7-1.4 px uncertain and their points of symmetry claimed 0.12-0.25 px,
-    but the noise made most of the symmetric fit's normal matrix (its share 0.8-1.1): two of
-    the corners kept lay over a pixel from the truth. Such points now have no sigma and do
-    not move; no returned corner is a pixel off."""
-    from benchmarks.detect_corpus import score
-    from benchmarks.detect_probe import alter
-    from camkit.render.stress import stress_view
-
-    v = stress_view(3073, megapixels=(0.1, 2))
-    det = detect_corners(alter(v, 3073, "noise"), v.board)
+    v = stress_view(seed, megapixels=(0.1, 2))
+    det = detect_corners(alter(v, seed, alteration), v.board)
     assert not det.found or score(v, det.corners)[0] == 0, det.message
 
 
