@@ -210,25 +210,29 @@ def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, f
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.ndarray, k: int,
+def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.ndarray, shade: np.ndarray, k: int,
                    i: int) -> tuple[float, float, float]:  # pragma: no cover - numba
     """Pair ``i`` of point ``k`` of :func:`symmetry_refine` at (px, py): its residual (the
-    shade at ``a`` less the shade at ``b``) and the residual's derivatives in x and y."""
+    shade at ``a`` less the shade at ``b``, less the light's gradient ``shade[k]`` across
+    them) and the residual's derivatives in x and y."""
     va, gxa, gya = _bilinear_grad(img, px + a[k, i, 0], py + a[k, i, 1])
     vb, gxb, gyb = _bilinear_grad(img, px + b[k, i, 0], py + b[k, i, 1])
-    return va - vb, gxa - gxb, gya - gyb
+    light = shade[k, 0] * (a[k, i, 0] - b[k, i, 0]) + shade[k, 1] * (a[k, i, 1] - b[k, i, 1])
+    return va - vb - light, gxa - gxb, gya - gyb
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
-                    iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
-                    normal: np.ndarray) -> None:  # pragma: no cover - numba
+                    shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
+                    normal: np.ndarray, sens: np.ndarray) -> None:  # pragma: no cover - numba
     """Move each point to where the image is point-symmetric through it: Gauss-Newton on the
     translation t of ``sum_i (I(p + t + a_i) - I(p + t + b_i))^2`` over its ``m[k]`` pairs of
     offsets ``a[k, i]``, ``b[k, i]`` (px; b the mirror image of a through the point on the
     board's local map), bilinear image values with central-difference gradients. ``img`` is
     the image smoothed with the separable kernel ``taps`` (odd length; ``[1.0]``: not
-    smoothed), which the covariance carries.
+    smoothed), which the covariance carries. ``shade[k]``: the gradient of the light across
+    point k (shade per px; zeros: none), taken off each pair's residual (linear light is not
+    point-symmetric).
 
     Writes ``out[k]`` (NaN where a sample leaves the image, the normal matrix is singular or
     it has not converged to ``tol`` px in ``iters`` steps), ``cov[k]`` = (xx, xy, yy) of the
@@ -237,7 +241,9 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
     white pixel noise that the final residuals would imply (their sum of squares over the sum
     of the squared weights they carry, the smoothing's sum of squared weights included), and
     ``normal[k]`` = (xx, xy, yy) of the normal matrix J^T J at the solution (its gradients are
-    read on the noisy image, so the noise adds to it: the caller weighs that share)."""
+    read on the noisy image, so the noise adds to it: the caller weighs that share), and
+    ``sens[k]`` = (xx, xy, yx, yy) of sum_i J_i (a_i - b_i)^T: the point moves by
+    (J^T J)^-1 sens dg where the light's gradient given is off by dg."""
     H, W = img.shape
     R = taps.shape[0] // 2
     t2 = 0.0
@@ -253,6 +259,8 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         normal[k, 0] = np.nan
         normal[k, 1] = np.nan
         normal[k, 2] = np.nan
+        for j in range(4):
+            sens[k, j] = np.nan
         n = m[k]
         if n < 3:
             continue
@@ -275,7 +283,7 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
                         or not (xa == xa and xb == xb and ya == ya and yb == yb)):
                     inside = False
                     break
-                r, jx, jy = _mirrored_pair(img, px, py, a, b, k, i)
+                r, jx, jy = _mirrored_pair(img, px, py, a, b, shade, k, i)
                 sxx += jx * jx
                 sxy += jx * jy
                 syy += jy * jy
@@ -319,16 +327,24 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         syy = 0.0
         rr = 0.0
         ww = 0.0
+        bxx = 0.0
+        bxy = 0.0
+        byx = 0.0
+        byy = 0.0
         for i in range(n):
             xa = px + a[k, i, 0]
             ya = py + a[k, i, 1]
             xb = px + b[k, i, 0]
             yb = py + b[k, i, 1]
-            r, jx, jy = _mirrored_pair(img, px, py, a, b, k, i)
+            r, jx, jy = _mirrored_pair(img, px, py, a, b, shade, k, i)
             sxx += jx * jx
             sxy += jx * jy
             syy += jy * jy
             rr += r * r
+            bxx += jx * (xa - xb)
+            bxy += jx * (ya - yb)
+            byx += jy * (xa - xb)
+            byy += jy * (ya - yb)
             for s in range(2):
                 xs = xa if s == 0 else xb
                 ys = ya if s == 0 else yb
@@ -384,6 +400,10 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
         normal[k, 0] = sxx
         normal[k, 1] = sxy
         normal[k, 2] = syy
+        sens[k, 0] = bxx
+        sens[k, 1] = bxy
+        sens[k, 2] = byx
+        sens[k, 3] = byy
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

@@ -43,7 +43,8 @@ class Detection:
     sigma_px : ndarray, (N,)
         Per-point standard deviation of the position, per axis (NaN where not seen): from the
         sub-pixel fit, and for the checkerboard the larger of that and what the image's
-        measured noise leaves, or the symmetric point's where a corner was moved there (see
+        measured noise leaves, grown by the reading of the light's gradient across it, or the
+        symmetric point's where a corner was moved there (see
         :func:`camkit.target.detect_corners`, steps 8-9).
     window_px : int
         Half-size of the sub-pixel window chosen for this image (0 where none was).

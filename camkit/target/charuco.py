@@ -574,7 +574,7 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
     detect_kernels.symmetry_refine(mosaic, detect_kernels.gaussian_taps(_SYM_SMOOTHING),
                                    np.ascontiguousarray(p0 + shift), np.ascontiguousarray(a),
                                    np.ascontiguousarray(b), np.full(len(sel), a.shape[1], dtype=np.int64),
-                                   20, 1e-3, pos, cov, wres, normal)
+                                   np.zeros((len(sel), 2)), 20, 1e-3, pos, cov, wres, normal, np.empty((len(sel), 4)))
     if start is not None:
         # Each patch holds the samples of points within 0.15 of a square of its start
         # (``extent``); one that ends farther from a start that is not the map's centre (which

@@ -427,6 +427,15 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        beside the edges, where the fit reads) or the image has no noise: each corner's noise
        is then read from the residuals of its own point-symmetric fit (step 9), through the
        same fit.
+       Light: light that changes across a corner (a glare's slope, uneven light) moves its
+       saddle point by ``H^-1 g`` (``g`` the light's gradient, ``H`` the fit's Hessian). The
+       gradient is read from the squares around the corner (their shades at their middles and
+       halfway to them, a plane and a contrast fitted: :func:`_shading_shift`) and the corner
+       shifted back, its sigma grown by the reading's; only where the gradient is beyond its
+       noise (what the plane misses counting as noise: a screen's moire), and the shift within a
+       quarter of the fit's window. Where the light is there but no plane fits the shades
+       (light that bends within a square, an occluder over one) or the shift would be larger,
+       the corner stays and that shift is its sigma.
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.02 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
@@ -439,10 +448,12 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        noise is not what limits such a corner, and on clean real photos the two estimators
        differ systematically (benchmarks/notes.md, fourteenth session). Where the noise is
        read beside each corner (step 8: a flattened file), whose residuals carry the model's
-       misfit too, the bar is 0.05 px.
+       misfit too, the bar is 0.05 px. The light's gradient read in step 8 is taken off the
+       symmetric fit too (a linear light is not point-symmetric), its uncertainty carried into
+       the point's sigma; a corner the light leaves in doubt is not moved.
        Then a corner whose sigma passes a quarter of a pixel is dropped (it could lie a pixel
-       off: a board too dim for its noise); where fewer than four are left the board is not
-       found, and the message says why.
+       off: a board too dim for its noise, light that bends across it); where fewer than four
+       are left the board is not found, and the message says why.
 
     Corners not seen (fingers over them, outside the image, failing the check) are NaN rows.
     Grey, RGB(A) and 16-bit images are accepted. An image without a board gives
@@ -627,10 +638,11 @@ def _fit_noise_factors(r: int, smoothing: float) -> tuple[float, tuple[float, fl
     return float(resid), (float(PKP[3, 3]), float(PKP[4, 4]))
 
 def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r: int,
-                 smoothing: float, image_noise: float) -> tuple[np.ndarray, float, np.ndarray]:
+                 smoothing: float, image_noise: float) -> tuple[np.ndarray, float, np.ndarray, np.ndarray]:
     """Each corner's one-sigma (per axis, px) from the image's noise, NaN where it has no
-    saddle, the white pixel noise ``w`` measured on the board, and each corner's sigma per
-    unit of white noise (the first output is ``w`` times it). The sigma is what the
+    saddle, the white pixel noise ``w`` measured on the board, each corner's sigma per
+    unit of white noise (the first output is ``w`` times it), and the inverse of each
+    corner's saddle Hessian (its elements 11, 12, 22; NaN rows where it has none). The sigma is what the
     fit's residuals miss (they take the smoothed noise as independent, and on a dim board
     under JPEG read tens of times low).
 
@@ -651,7 +663,7 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     sigma = np.full(len(corners), np.nan)
     seen = np.isfinite(corners).all(axis=1)
     if seen.sum() == 0:
-        return sigma, image_noise, sigma.copy()
+        return sigma, image_noise, sigma.copy(), np.full((len(corners), 3), np.nan)
     mid, clear = _square_middles(corners, cols, rows)
     h, w = grey.shape[:2]
     margin = r + 3
@@ -680,24 +692,186 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     var_d, var_e = var_grad
     a, b, cc = coef[m:, 0], coef[m:, 1], coef[m:, 2]
     det = 4 * a * cc - b * b
+    inverse = np.full((len(corners), 3), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):  # a flat fit: no sigma
         h11, h12, h22 = 2 * cc / det, -b / det, 2 * a / det
         sigma[seen] = np.sqrt(0.5 * (var_d * (h11 * h11 + h12 * h12) + var_e * (h12 * h12 + h22 * h22)))
-    return sigma * np.sqrt(white), float(np.sqrt(white)), sigma
+    inverse[seen] = np.stack([h11, h12, h22], axis=-1)
+    return sigma * np.sqrt(white), float(np.sqrt(white)), sigma, inverse
+
+
+def _local_steps(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each corner's lattice steps along the board's columns and rows (px, (N, 2) each): central
+    differences, one-sided where a neighbour is missing, the board's median where both are."""
+    C = corners.reshape(rows, cols, 2)
+    steps = []
+    for axis in (1, 0):
+        fwd = np.diff(C, axis=axis)
+        pad = [(0, 0)] * 3
+        pad[axis] = (1, 0)
+        back = np.pad(fwd, pad, constant_values=np.nan)
+        pad[axis] = (0, 1)
+        ahead = np.pad(fwd, pad, constant_values=np.nan)
+        one = np.where(np.isfinite(back), back, ahead)
+        e = np.where(np.isfinite(back) & np.isfinite(ahead), 0.5 * (back + ahead), one)
+        e = e.reshape(-1, 2)
+        missing = ~np.isfinite(e).all(axis=1)
+        if missing.any() and (~missing).any():
+            e[missing] = np.median(e[~missing], axis=0)
+        steps.append(e)
+    return steps[0], steps[1]
+
+
+#: Step 8's shading: each place's shade is the mean of the pixels in a box reaching this
+#: fraction of the step from it.
+_SHADE_RADIUS = 0.12
+#: ... the light's gradient counts where it is beyond its noise: its chi-square (2 degrees of
+#: freedom) over this (0.03 % by chance; at 9, a screen's moire read as light moved corners of
+#: a probe view 1.1-1.4 px, benchmarks/notes.md, thirty-sixth session).
+_SHADE_CHI2 = 16.0
+#: ... and a plane describes the light where the eight places miss it by at most three of their
+#: noise's sigmas plus this fraction of the squares' half-contrast (RMS): more is an occluder
+#: over a square, a second pattern, or light that bends within a square (a glare's spot).
+_SHADE_MISFIT = 0.1
+#: ... and the shift it implies is at most this fraction of the saddle fit's window half-size.
+_SHADE_MAX_SHIFT = 0.25
+
+
+def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, inverse: np.ndarray,
+                   white: float, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step 8 of :func:`detect_corners`: how far a gradient of the light moves each saddle point,
+    the variance (px^2, per axis) that reading adds to the corner's (zero and NaN where the
+    light's gradient is not read beyond its noise), the gradient (shade per px, (N, 2)) and its
+    covariance ((N, 3): xx, xy, yy) where the corner was shifted (zeros elsewhere), and which
+    corners the light leaves in doubt (below).
+
+    A saddle point is the stationary point of the quadratic fitted around it, and light that
+    changes linearly across the corner (a glare's slope, uneven light) adds its gradient ``g``
+    to the fit's linear terms: the saddle point lies ``H^-1 g`` from the junction (``H`` the
+    fit's Hessian; ``inverse``: :func:`_noise_sigma`'s). The fit cannot tell that gradient from
+    the junction's own; the squares around it can: the two light squares differ by the
+    gradient along their diagonal, the two dark ones along the other. Each square's shade is
+    read at its middle and halfway to it (the mean of the pixels in a box reaching
+    ``_SHADE_RADIUS`` of a step from the nearest pixel), and a plane and a contrast for each
+    ring (the inner places may lie in the edges' blur) fitted to the eight (least squares,
+    three degrees of freedom to spare). Each shade's noise is the white noise ``white``, or
+    the box's own spread where that is more (texture within the squares: a screen's grid),
+    over its pixels, or what the plane misses where that is more (moire); the shift's
+    variance is that, propagated.
+
+    The shift is made where the gradient's chi-square passes ``_SHADE_CHI2``, the plane fits
+    the eight shades (``_SHADE_MISFIT``) and the shift is within ``_SHADE_MAX_SHIFT`` of the
+    fit's window half-size ``r``. Where the gradient is there but no plane fits (light that
+    bends within a square, an occluder over a square) or the shift would be larger, the
+    corner is not shifted and the shift the gradient implies is its variance: how far the
+    light may have moved it. Where any place lies outside the image, or the shades show no
+    contrast beyond three of its sigmas, nothing is read."""
+    n = len(corners)
+    shift = np.zeros((n, 2))
+    var = np.full(n, np.nan)
+    gradient = np.zeros((n, 2))
+    gcov = np.zeros((n, 3))
+    doubt = np.zeros(n, dtype=bool)
+    nothing = shift, var, gradient, gcov, doubt
+    seen = np.isfinite(corners).all(axis=1) & np.isfinite(inverse).all(axis=1)
+    if seen.sum() < 2:
+        return nothing
+    e1, e2 = _local_steps(corners, cols, rows)
+    idx = np.flatnonzero(seen & np.isfinite(e1).all(axis=1) & np.isfinite(e2).all(axis=1))
+    c, e1, e2 = corners[idx], e1[idx], e2[idx]
+    # Two places in each square: its middle and halfway to it along the diagonal; the first two
+    # squares of each ring one colour, the last two the other.
+    signs = np.array([[1.0, 1.0], [-1.0, -1.0], [1.0, -1.0], [-1.0, 1.0]] * 2)
+    t = np.repeat([1.0, 0.5], 4)
+    colour = np.array([1.0, 1.0, -1.0, -1.0] * 2)
+    d = (0.5 * t)[None, :, None] * (signs[None, :, :1] * e1[:, None] + signs[None, :, 1:] * e2[:, None])  # (K, 8, 2)
+    rad = _SHADE_RADIUS * np.minimum(np.hypot(*e1.T), np.hypot(*e2.T))[:, None] * t  # (K, 8)
+    # Each place's shade: the mean over a box of pixels (2b + 1 wide) about it, from an integral
+    # image of the box covering them all (point samples alias with a screen's pixel grid).
+    b = np.maximum(1, np.round(rad)).astype(np.int64)
+    cx = np.round(c[:, None, 0] + d[..., 0]).astype(np.int64)
+    cy = np.round(c[:, None, 1] + d[..., 1]).astype(np.int64)
+    d = np.stack([cx - c[:, None, 0], cy - c[:, None, 1]], axis=-1)  # the boxes' centres
+    h, w = grey.shape[:2]
+    inside = ((cx - b >= 0) & (cx + b <= w - 1) & (cy - b >= 0) & (cy + b <= h - 1)).all(axis=1)
+    k = len(idx)
+    M = np.concatenate([np.ones((k, 8, 1)), d, np.broadcast_to((colour * (t == 1.0))[None, :, None], (k, 8, 1)),
+                        np.broadcast_to((colour * (t == 0.5))[None, :, None], (k, 8, 1))], axis=2)
+    MtM = np.einsum("kai,kaj->kij", M, M)
+    ok = inside & (np.linalg.cond(MtM) < 1e8)
+    if not ok.any():
+        return nothing
+    idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
+    x0, y0 = int((cx - b).min()), int((cy - b).min())
+    x1, y1 = int((cx + b).max()) + 1, int((cy + b).max()) + 1
+    crop = np.asarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)[y0:y1, x0:x1]
+    box = []
+    for v in (crop, crop * crop):
+        S = np.zeros((v.shape[0] + 1, v.shape[1] + 1))
+        np.cumsum(np.cumsum(v, axis=0), axis=1, out=S[1:, 1:])
+        lo_x, hi_x, lo_y, hi_y = cx - b - x0, cx + b + 1 - x0, cy - b - y0, cy + b + 1 - y0
+        box.append((S[hi_y, hi_x] - S[lo_y, hi_x] - S[hi_y, lo_x] + S[lo_y, lo_x]) / (2 * b + 1) ** 2)
+    shade = box[0]  # (K, 8)
+    n_px = (2 * b + 1) ** 2
+    spread = np.fmax(box[1] - shade * shade, 0.0) * n_px / np.maximum(n_px - 1, 1)
+    P = np.linalg.solve(MtM, M.transpose(0, 2, 1))  # (K, 5, 8)
+    sol = np.einsum("kij,kj->ki", P, shade)
+    # Each shade's variance: the white noise, or the pixels' own spread where that is more
+    # (texture within the squares: a screen's grid, print), over the box's pixels.
+    var_white = white ** 2 / n_px
+    var_shade = np.fmax(white ** 2, spread) / n_px
+    res = shade - np.einsum("kaj,kj->ka", M, sol)
+    misfit = np.sqrt((res * res).sum(axis=1) / 3.0)
+    # What the plane misses counts as the shades' noise where it is more (texture within the
+    # squares: a screen's moire, print, JPEG's blocks).
+    cov = np.einsum("kia,ka,kja->kij", P, np.fmax(var_shade, misfit[:, None] ** 2), P)
+    contrast = np.abs(sol[:, 3])
+    gx, gy = sol[:, 1], sol[:, 2]
+    cg = cov[:, 1:3, 1:3]
+    dg = cg[:, 0, 0] * cg[:, 1, 1] - cg[:, 0, 1] ** 2
+    with np.errstate(divide="ignore", invalid="ignore"):
+        quad = cg[:, 1, 1] * gx * gx - 2 * cg[:, 0, 1] * gx * gy + cg[:, 0, 0] * gy * gy
+        chi2 = np.where(dg > 0, quad / dg, np.inf)
+    read = (contrast > 3.0 * np.sqrt(cov[:, 3, 3])) & (chi2 > _SHADE_CHI2)
+    hv = inverse[idx]
+    Hi = np.stack([np.stack([hv[:, 0], hv[:, 1]], -1), np.stack([hv[:, 1], hv[:, 2]], -1)], -2)
+    implied = np.einsum("kij,kj->ki", Hi, sol[:, 1:3])
+    plane = misfit <= 3.0 * np.sqrt(var_white.mean(axis=1)) + _SHADE_MISFIT * contrast
+    # The quadratic describes the junction within its window: a shift past a quarter of it is
+    # no first-order correction (motion blur of 8-20 px, read as light, gave 1 px at half).
+    plane &= np.hypot(*implied.T) <= _SHADE_MAX_SHIFT * r
+    cs = Hi @ cg @ Hi.transpose(0, 2, 1)
+    moved = read & plane
+    shift[idx[moved]] = implied[moved]
+    var[idx[moved]] = 0.5 * (cs[moved, 0, 0] + cs[moved, 1, 1])
+    gradient[idx[moved]] = sol[moved, 1:3]
+    gcov[idx[moved]] = np.stack([cg[moved, 0, 0], cg[moved, 0, 1], cg[moved, 1, 1]], axis=-1)
+    bent = read & ~plane
+    var[idx[bent]] = (implied[bent] ** 2).sum(axis=1)
+    doubt[idx[bent]] = True
+    return shift, var, gradient, gcov, doubt
 
 
 def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float,
                 step: float = 0.0) -> Detection:
     """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
-    the noise's (:func:`_noise_sigma`); corners moved to their point of symmetry
+    the noise's (:func:`_noise_sigma`); corners shifted for the light's gradient
+    (:func:`_shading_shift`), their sigma grown by its reading's; corners moved to their point of symmetry
     (:func:`_symmetric`) take that estimate's; corners over ``_MAX_CORNER_SIGMA`` are
     dropped. ``step``: one level of the file's samples in the grey's units; where the noise
     measured on the board is below it, the flat squares were flattened (JPEG) and the noise
     is read beside each corner instead (:func:`_symmetric`'s ``unit``)."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise, white, unit = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor, image_noise)
+    noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor,
+                                               image_noise)
+    shift, shift_var, gradient, gcov, doubt = _shading_shift(grey, det.corners, cols, rows, inverse, white,
+                                                                    det.window_px)
     sigma = np.fmax(det.sigma_px, noise)
-    corners, sigma = _symmetric(grey, det.corners, sigma, noise, cols, white, unit if white < step else None)
+    shifted = det.corners + shift
+    moved = np.isfinite(shift_var)
+    sigma[moved] = np.sqrt(sigma[moved] ** 2 + shift_var[moved])
+    corners, sigma = _symmetric(grey, shifted, sigma, noise, cols, white, unit if white < step else None,
+                                (gradient, gcov, doubt))
     det = Detection(True, corners, sigma, det.window_px, det.message)
     noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
     if not noisy.any():
@@ -707,8 +881,9 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     corners[noisy] = np.nan
     sigma[noisy] = np.nan
     found = int(np.isfinite(corners).all(axis=1).sum())
-    why = (f"the image's noise leaves {int(noisy.sum())} corners more than a quarter of a pixel uncertain "
-           f"(sigma up to {worst:.2f} px: too little contrast for the noise)")
+    why = (f"the image's noise or light leaves {int(noisy.sum())} corners more than a quarter of a pixel "
+           f"uncertain (sigma up to {worst:.2f} px: too little contrast for the noise, or light that bends "
+           "across the corner)")
     if found < 4:
         return Detection.not_found(len(corners), f"not found: {why}", det.window_px)
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")
@@ -981,7 +1156,8 @@ _CROP_WANDER = 4.0
 
 
 def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_sigma: np.ndarray, cols: int,
-               white: float, unit: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+               white: float, unit: np.ndarray | None = None,
+               light: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Step 9 of :func:`detect_corners`: each corner moved to the point through which the image
     around it is point-symmetric on the board (a checkerboard is, about every inner corner),
     where that estimate agrees with the saddle point; returns (corners, sigma).
@@ -1024,6 +1200,10 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     seen = np.isfinite(corners).all(axis=1)
     with np.errstate(invalid="ignore"):
         noisy = (seen & (noise_sigma > _SYM_FROM_SIGMA)) if unit is None else seen
+    if light is None:
+        light = (np.zeros((len(corners), 2)), np.zeros((len(corners), 3)), np.zeros(len(corners), dtype=bool))
+    gradient, gcov, doubt = light
+    noisy &= ~doubt
     if seen.sum() < 5 or not noisy.any():
         return corners, sigma
     spacing = _grid_spacing(corners, cols)
@@ -1045,13 +1225,25 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
         """The corners ``use[k]`` at their point of symmetry on the maps ``a``, ``b``: (points,
         sigma, the white noise their residuals imply)."""
         p, cv, wr, nm = np.empty((len(k), 2)), np.empty((len(k), 3)), np.empty(len(k)), np.empty((len(k), 3))
+        sens = np.empty((len(k), 4))
         img, origin = smoothed.covering(corners[use[k]], max(np.abs(a).max(initial=0.0), np.abs(b).max(initial=0.0),
                                                              wide_reach))
         detect_kernels.symmetry_refine(img, taps, np.ascontiguousarray(corners[use[k]] - origin),
                                        np.ascontiguousarray(a), np.ascontiguousarray(b),
-                                       np.full(len(k), a.shape[1], dtype=np.int64), 20, 1e-3, p, cv, wr, nm)
+                                       np.full(len(k), a.shape[1], dtype=np.int64),
+                                       np.ascontiguousarray(gradient[use[k]]), 20, 1e-3, p, cv, wr, nm, sens)
         p += origin
-        return p, _symmetry_sigma(cv, nm, wr, white, a.shape[1]), wr
+        # The light's gradient taken off is uncertain: (J^T J)^-1 sens carries its covariance.
+        det_n = nm[:, 0] * nm[:, 2] - nm[:, 1] ** 2
+        with np.errstate(invalid="ignore", divide="ignore"):
+            ni = np.stack([np.stack([nm[:, 2], -nm[:, 1]], -1), np.stack([-nm[:, 1], nm[:, 0]], -1)], -2)
+            ni /= det_n[:, None, None]
+        D = ni @ sens.reshape(-1, 2, 2)
+        gc = gcov[use[k]]
+        C = np.stack([np.stack([gc[:, 0], gc[:, 1]], -1), np.stack([gc[:, 1], gc[:, 2]], -1)], -2)
+        cd = D @ C @ D.transpose(0, 2, 1)
+        extra = np.where(gc.any(axis=1), 0.5 * (cd[:, 0, 0] + cd[:, 1, 1]), 0.0)
+        return p, np.sqrt(_symmetry_sigma(cv, nm, wr, white, a.shape[1]) ** 2 + extra), wr
 
     pos, sym_sigma, wres = refine(np.arange(len(use)), a, b)
     out, sig = corners.copy(), sigma.copy()

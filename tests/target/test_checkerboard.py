@@ -252,6 +252,11 @@ def test_a_corner_an_occluder_touches_is_not_taken_from_a_coarser_level(monkeypa
     det = detect_corners(photo, board)
     assert det.found and np.nanmax(np.hypot(*(det.corners - c).T)) < 0.1, det.message
     monkeypatch.setattr(cb, "_ASYMMETRY_FLOOR", 10.0)  # the full-resolution test off
+    # ... and step 8's reading of the light, which doubts the corner too (the finger over its
+    # squares is no plane of light).
+    monkeypatch.setattr(cb, "_shading_shift", lambda grey, corners, *rest: (
+        np.zeros((len(corners), 2)), np.full(len(corners), np.nan), np.zeros((len(corners), 2)),
+        np.zeros((len(corners), 3)), np.zeros(len(corners), dtype=bool)))
     det = detect_corners(photo, board)
     assert np.nanmax(np.hypot(*(det.corners - c).T)) > 1.0, det.message
 
@@ -344,7 +349,8 @@ def test_symmetry_refine_finds_the_centre_and_its_sigma_is_the_scatter():
 
     def run(img, taps, start):
         out, cov, wres, normal = np.empty((1, 2)), np.empty((1, 3)), np.empty(1), np.empty((1, 3))
-        k.symmetry_refine(img, taps, np.array([start], dtype=float), a, b, m, 20, 1e-4, out, cov, wres, normal)
+        k.symmetry_refine(img, taps, np.array([start], dtype=float), a, b, m, np.zeros((1, 2)), 20, 1e-4, out, cov, wres,
+                          normal, np.empty((1, 4)))
         return out[0], cov[0], wres[0]
 
     clean = _symmetric_junction((80, 90), centre, A, 0.08)
@@ -383,6 +389,110 @@ def test_symmetry_refine_finds_the_centre_and_its_sigma_is_the_scatter():
         assert abs(np.median(ws) / noise - 1) < 0.15, (len(taps), np.median(ws))
 
 
+def test_symmetry_refine_takes_the_light_gradient_off_and_says_how_it_moves_the_point():
+    """A linear light across a junction is not point-symmetric: the fit follows it unless the
+    gradient is given, and ``sens`` says how the point moves with the gradient given."""
+    from camkit._kernels import detect as k
+
+    A, centre, a, b, m = _mirrored_pairs()
+    taps = k.gaussian_taps(1.0)
+    g = np.array([0.004, -0.003])  # shade per px: 0.07 across a square against a contrast of 0.2
+    y, x = np.mgrid[0:80, 0:90].astype(float)
+    lit = _symmetric_junction((80, 90), centre, A, 0.25) + g[0] * (x - centre[0]) + g[1] * (y - centre[1])
+    img = np.empty_like(lit)
+    k.gaussian_blur(lit, 1.0, img)
+
+    def run(shade):
+        out, cov, wres, normal, sens = np.empty((1, 2)), np.empty((1, 3)), np.empty(1), np.empty((1, 3)), np.empty((1, 4))
+        k.symmetry_refine(img, taps, np.array([centre]), a, b, m, np.array([shade], dtype=float), 20, 1e-6, out, cov,
+                          wres, normal, sens)
+        return out[0], normal[0], sens[0]
+
+    blind = run([0.0, 0.0])[0]
+    p, normal, sens = run(g)
+    assert np.hypot(*(blind - centre)) > 0.3, blind  # the light pulls the blind fit off
+    assert np.hypot(*(p - centre)) < 0.01, p
+    # The point moves by (J^T J)^-1 sens dg for a gradient given off by dg.
+    dg = np.array([0.0005, 0.0003])
+    N = np.array([[normal[0], normal[1]], [normal[1], normal[2]]])
+    predicted = np.linalg.solve(N, sens.reshape(2, 2) @ dg)
+    moved = run(g + dg)[0] - p
+    assert np.allclose(moved, predicted, atol=0.1 * np.hypot(*predicted)), (moved, predicted)
+
+
+def _lit_board(spot: float, blob: int | None = None):
+    """A 9x6 board (squares of about 45 px) under a spot of light of ``spot`` times the board's
+    white, 1.2 squares wide, centred near corner 22; ``blob``: a dark disc over the middle of the
+    square right and below that corner. Returns (8-bit image, true corners, board)."""
+    from scipy.ndimage import gaussian_filter
+
+    cam = default_camera("brown-conrady")
+    board = Checkerboard(9, 6, 0.03)
+    pose = plan_views(cam, board, 3, np.random.default_rng(5))[0]
+    img, truth = render_checkerboard(cam, pose, board, black=0.1, white=0.5)
+    tc = truth.corners_px
+    square = float(np.median(np.hypot(*np.diff(tc.reshape(6, 9, 2), axis=1).reshape(-1, 2).T)))
+    y, x = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    centre = tc[22] + [6.0, -4.0]
+    img = img + spot * 0.5 * np.exp(-((x - centre[0]) ** 2 + (y - centre[1]) ** 2) / (2 * (1.2 * square) ** 2))
+    if blob is not None:
+        mid = tc[[blob, blob + 1, blob + 9, blob + 10]].mean(axis=0)
+        img[np.hypot(x - mid[0], y - mid[1]) < 0.3 * square] = 0.3
+    img = gaussian_filter(img, 1.5)
+    return np.clip(np.round(img * 255), 0, 255).astype(np.uint8), tc, board
+
+
+def test_light_that_changes_across_a_corner_does_not_move_it():
+    """Issue 21 item 2 under light the corpus barely draws (benchmarks/detect_probe.py's glare):
+    a spot of light across a blurred board moves the saddle points by up to 0.39 px (the
+    gradient ``g`` adds to the fit's linear terms: ``H^-1 g``). The light's gradient, read from
+    the squares around each corner, takes that off; where the light bends within a square a
+    plane does not fit, and the corner is kept only where the shift it could cause is under a
+    quarter of a pixel."""
+    from scipy.ndimage import gaussian_filter
+
+    from camkit.target.checkerboard import _SIGMA, _saddle_fit
+
+    img, tc, board = _lit_board(0.9)
+    det = detect_corners(img, board)
+    assert det.found and det.n_found >= 48, det.message
+    err = np.hypot(*(det.corners - tc).T)
+    raw = _saddle_fit(gaussian_filter(img.astype(float), _SIGMA), tc.copy(), det.window_px)[0]
+    raw_err = np.hypot(*(raw - tc).T)
+    assert np.nanmax(raw_err) > 0.3, np.nanmax(raw_err)  # what the saddle points alone give
+    assert np.nanmax(err) < 0.15 and np.nanmedian(err) < 0.02, (np.nanmax(err), np.nanmedian(err))
+    # Without the light, the same board's corners are where they were.
+    dark, _, _ = _lit_board(0.0)
+    plain = detect_corners(dark, board)
+    assert plain.n_found == 54 and np.nanmax(np.hypot(*(plain.corners - tc).T)) < 0.05
+
+
+def test_an_occluder_over_a_square_does_not_shift_its_corners():
+    """A dark disc over a square's middle is no gradient of the light: no plane fits the
+    squares' shades there, and the corners beside it are not shifted by it (kept where they
+    are, or dropped)."""
+    import camkit.target.checkerboard as cb
+
+    img, tc, board = _lit_board(0.0, blob=30)
+    seen = {}
+    real = cb._shading_shift
+
+    def spy(*args):
+        out = real(*args)
+        seen["shift"] = out[0]
+        return out
+
+    try:
+        cb._shading_shift = spy
+        det = detect_corners(img, board)
+    finally:
+        cb._shading_shift = real
+    around = [30, 31, 39, 40]
+    assert np.all(np.hypot(*seen["shift"][around].T) == 0.0), seen["shift"][around]
+    err = np.hypot(*(det.corners - tc).T)
+    assert np.nanmax(err) < 0.05, np.nanmax(err)
+
+
 def test_symmetric_sigma_counts_the_noise_in_the_gradients():
     """Where the noise is a large part of the image's gradients the normal matrix, read on the
     noisy image, is that much too large and the linearised sigma too small: divided by the
@@ -401,7 +511,8 @@ def test_symmetric_sigma_counts_the_noise_in_the_gradients():
             img = np.empty_like(clean)
             k.gaussian_blur(clean + rng.normal(0.0, noise, clean.shape), 1.0, img)
             out, cov, wres, normal = np.empty((1, 2)), np.empty((1, 3)), np.empty(1), np.empty((1, 3))
-            k.symmetry_refine(img, taps, np.array([centre]), a, b, m, 20, 1e-4, out, cov, wres, normal)
+            k.symmetry_refine(img, taps, np.array([centre]), a, b, m, np.zeros((1, 2)), 20, 1e-4, out, cov, wres, normal,
+                              np.empty((1, 4)))
             est.append(out[0])
             sig.append(_symmetry_sigma(cov, normal, wres, noise, m[0])[0])
             raw.append(np.sqrt(0.5 * (cov[0, 0] + cov[0, 2])) * max(wres[0], noise))
@@ -708,10 +819,12 @@ def test_a_fisheye_rim_board_shrunk_to_a_half_is_found_whole(shared_data):
     board at the rim) shrunk to a half (320x360). Its whole lattice is linked, but the local
     check keeps 6 of 24 corners, too few for the lens model that puts corners back; the board
     was refused ("the 2x2 corners seen fit the 6x4 board either way round"). A lens model on the
-    whole lattice keeps all 24, with OpenCV's labels."""
+    whole lattice keeps all 24, with OpenCV's labels. Step 8 then drops one (corner 18, 0.52 px
+    from OpenCV's with a sigma of 0.05 px before): the light across its squares, at the rim
+    and this size, is no plane, and the shift it implies is its sigma."""
     det, med, wrong = _real_resized(shared_data, "boofcv_fisheye", "example_calibration_fisheye_chessboard_22.jpg",
                                     0.5, Checkerboard(6, 4, 0.03))
-    assert det.found and det.n_found == 24, det.message
+    assert det.found and det.n_found >= 23, det.message
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
@@ -833,7 +946,8 @@ def test_a_blurred_fisheye_view_whose_rim_column_the_check_drops_keeps_its_label
     assert wrong == 0 and med < 0.3, (med, wrong)
 
 
-@pytest.mark.parametrize(("seed", "alteration"), [(3046, "bayer_ca"), (3073, "noise")])
+@pytest.mark.parametrize(("seed", "alteration"), [(3046, "bayer_ca"), (3073, "noise"), (3060, "glare"),
+                                                  (3183, "glare")])
 def test_probe_views_that_returned_wrong_corners(seed, alteration):
     """Issue 21 item 2 on views the corpus does not draw (benchmarks/detect_probe.py); each
     returned corners over a pixel from the true corner of their label, and now returns none.
@@ -847,7 +961,10 @@ def test_probe_views_that_returned_wrong_corners(seed, alteration):
     - 3073 (a backlit 9x4 board, blurred) under added noise of 5-12 % of the range: saddle
       points 0.7-1.4 px uncertain moved to points of symmetry that claimed 0.12-0.25 px, the
       noise making most of the symmetric fit's normal matrix (its share 0.8-1.1): two corners
-      kept lay over a pixel off. Such points now have no sigma and do not move."""
+      kept lay over a pixel off. Such points now have no sigma and do not move.
+    - 3060 and 3183 under a glare (a clipped spot of light): one corner each 1.05-1.1 px off
+      with a sigma of 0.07-0.09 px, its saddle point moved by the light's slope (``H^-1 g``).
+      The light's gradient is now read from the squares around each corner and taken off."""
     from benchmarks.detect_corpus import score
     from benchmarks.detect_probe import alter
     from camkit.render.stress import stress_view
