@@ -786,8 +786,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     colour = np.array([1.0, 1.0, -1.0, -1.0] * 2)
     d = (0.5 * t)[None, :, None] * (signs[None, :, :1] * e1[:, None] + signs[None, :, 1:] * e2[:, None])  # (K, 8, 2)
     rad = _SHADE_RADIUS * np.minimum(np.hypot(*e1.T), np.hypot(*e2.T))[:, None] * t  # (K, 8)
-    # Each place's shade: the mean over a box of pixels (2b + 1 wide) about it, from an integral
-    # image of the box covering them all (point samples alias with a screen's pixel grid).
+    # Each place's shade: the mean over a box of pixels (2b + 1 wide) about it (point samples
+    # alias with a screen's pixel grid).
     b = np.maximum(1, np.round(rad)).astype(np.int64)
     cx = np.round(c[:, None, 0] + d[..., 0]).astype(np.int64)
     cy = np.round(c[:, None, 1] + d[..., 1]).astype(np.int64)
@@ -798,22 +798,17 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     M = np.concatenate([np.ones((k, 8, 1)), d, np.broadcast_to((colour * (t == 1.0))[None, :, None], (k, 8, 1)),
                         np.broadcast_to((colour * (t == 0.5))[None, :, None], (k, 8, 1))], axis=2)
     MtM = np.einsum("kai,kaj->kij", M, M)
-    ok = inside & (np.linalg.cond(MtM) < 1e8)
+    # The squares are not flattened to a line (the design then has full rank).
+    cross = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+    l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
+    ok = inside & (cross > 0.05 * l1 * l2) & (np.minimum(l1, l2) >= 4.0)
     if not ok.any():
         return nothing
     idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
-    x0, y0 = int((cx - b).min()), int((cy - b).min())
-    x1, y1 = int((cx + b).max()) + 1, int((cy + b).max()) + 1
-    crop = np.asarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)[y0:y1, x0:x1]
-    box = []
-    for v in (crop, crop * crop):
-        S = np.zeros((v.shape[0] + 1, v.shape[1] + 1))
-        np.cumsum(np.cumsum(v, axis=0), axis=1, out=S[1:, 1:])
-        lo_x, hi_x, lo_y, hi_y = cx - b - x0, cx + b + 1 - x0, cy - b - y0, cy + b + 1 - y0
-        box.append((S[hi_y, hi_x] - S[lo_y, hi_x] - S[hi_y, lo_x] + S[lo_y, lo_x]) / (2 * b + 1) ** 2)
-    shade = box[0]  # (K, 8)
+    img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
+    shade, spread = np.empty(cx.shape), np.empty(cx.shape)
+    detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), shade.ravel(), spread.ravel())
     n_px = (2 * b + 1) ** 2
-    spread = np.fmax(box[1] - shade * shade, 0.0) * n_px / np.maximum(n_px - 1, 1)
     P = np.linalg.solve(MtM, M.transpose(0, 2, 1))  # (K, 5, 8)
     sol = np.einsum("kij,kj->ki", P, shade)
     # Each shade's variance: the white noise, or the pixels' own spread where that is more
