@@ -420,6 +420,19 @@ def test_symmetry_refine_takes_the_light_gradient_off_and_says_how_it_moves_the_
     assert np.allclose(moved, predicted, atol=0.1 * np.hypot(*predicted)), (moved, predicted)
 
 
+def test_box_means_are_the_boxes_mean_and_variance():
+    from camkit._kernels import detect as k
+
+    img = np.random.default_rng(3).normal(0.5, 0.1, (40, 50))
+    cx, cy, half = np.array([10, 25, 47]), np.array([5, 20, 37]), np.array([1, 4, 2])
+    mean, spread = np.empty(3), np.empty(3)
+    k.box_means(img, cx, cy, half, mean, spread)
+    for i in range(3):
+        box = img[cy[i] - half[i]:cy[i] + half[i] + 1, cx[i] - half[i]:cx[i] + half[i] + 1]
+        assert box.size == (2 * half[i] + 1) ** 2
+        assert np.isclose(mean[i], box.mean()) and np.isclose(spread[i], box.var(ddof=1))
+
+
 def _lit_board(spot: float, blob: int | None = None):
     """A 9x6 board (squares of about 45 px) under a spot of light of ``spot`` times the board's
     white, 1.2 squares wide, centred near corner 22; ``blob``: a dark disc over the middle of the
