@@ -1185,6 +1185,11 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     view), and that point is kept where it too agrees with the saddle point and its sigma is
     the smaller.
 
+    ``light`` (step 8's :func:`_shading_shift`: each corner's light gradient, its covariance,
+    and which corners the light leaves in doubt): the gradient is taken off each mirrored pair
+    (a linear light is not point-symmetric) and its covariance carried into the point's sigma
+    through the kernel's ``sens``; a corner in doubt is not moved.
+
     ``unit`` (each corner's saddle-point sigma per unit of white noise, :func:`_noise_sigma`)
     is given where the noise measured in the squares' middles is below one level of the file:
     the flat squares were flattened (JPEG keeps its error beside the edges, where the fit
