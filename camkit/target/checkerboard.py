@@ -700,6 +700,11 @@ def _noise_sigma(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, r:
     return sigma * np.sqrt(white), float(np.sqrt(white)), sigma, inverse
 
 
+def _sym2(m: np.ndarray) -> np.ndarray:
+    """Symmetric 2x2 matrices (K, 2, 2) from their elements (xx, xy, yy) as columns (K, 3)."""
+    return np.stack([m[:, [0, 1]], m[:, [1, 2]]], axis=-2)
+
+
 def _local_steps(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
     """Each corner's lattice steps along the board's columns and rows (px, (N, 2) each): central
     differences, one-sided where a neighbour is missing, the board's median where both are."""
@@ -829,7 +834,7 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
         chi2 = np.where(dg > 0, quad / dg, np.inf)
     read = (contrast > 3.0 * np.sqrt(cov[:, 3, 3])) & (chi2 > _SHADE_CHI2)
     hv = inverse[idx]
-    Hi = np.stack([np.stack([hv[:, 0], hv[:, 1]], -1), np.stack([hv[:, 1], hv[:, 2]], -1)], -2)
+    Hi = _sym2(hv)
     implied = np.einsum("kij,kj->ki", Hi, sol[:, 1:3])
     plane = misfit <= 3.0 * np.sqrt(var_white.mean(axis=1)) + _SHADE_MISFIT * contrast
     # The quadratic describes the junction within its window: a shift past a quarter of it is
@@ -1236,11 +1241,10 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
         # The light's gradient taken off is uncertain: (J^T J)^-1 sens carries its covariance.
         det_n = nm[:, 0] * nm[:, 2] - nm[:, 1] ** 2
         with np.errstate(invalid="ignore", divide="ignore"):
-            ni = np.stack([np.stack([nm[:, 2], -nm[:, 1]], -1), np.stack([-nm[:, 1], nm[:, 0]], -1)], -2)
-            ni /= det_n[:, None, None]
+            ni = _sym2(np.stack([nm[:, 2], -nm[:, 1], nm[:, 0]], axis=-1)) / det_n[:, None, None]
         D = ni @ sens.reshape(-1, 2, 2)
         gc = gcov[use[k]]
-        C = np.stack([np.stack([gc[:, 0], gc[:, 1]], -1), np.stack([gc[:, 1], gc[:, 2]], -1)], -2)
+        C = _sym2(gc)
         cd = D @ C @ D.transpose(0, 2, 1)
         extra = np.where(gc.any(axis=1), 0.5 * (cd[:, 0, 0] + cd[:, 1, 1]), 0.0)
         return p, np.sqrt(_symmetry_sigma(cv, nm, wr, white, a.shape[1]) ** 2 + extra), wr
