@@ -552,7 +552,7 @@ def consistent(G: np.ndarray, q: np.ndarray, tol: np.ndarray, keep: np.ndarray) 
 @njit(cache=True, nogil=True, error_model="numpy")
 def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side: int, near: np.ndarray,
                    far: np.ndarray, beyond: np.ndarray, far_sides: np.ndarray,
-                   close: np.ndarray) -> None:  # pragma: no cover - numba
+                   close: np.ndarray, inner: np.ndarray) -> None:  # pragma: no cover - numba
     """The shade half a square and one and a half squares out from the lattice's side ``side``
     (-1: low, +1: high) of lattice axis ``axis``, at each square along it (``near`` and ``far``
     hold one entry a square: between the corners j and j + 1 of the outer line), from the map
@@ -563,7 +563,8 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
     ``far_sides`` (one row a square) gets the shade one and a half squares out as ``far`` does,
     three tenths and seven tenths of the way along the square instead of half; ``close`` (one
     entry a square) the shade 1.2 squares out, half way along (a fifth of a square past the
-    outer squares: a narrow margin's)."""
+    outer squares: a narrow margin's); ``inner`` (one entry a square) the shade half a square in,
+    the lattice's own last squares, half way along."""
     H, W = s.shape
     S = G.shape
     edge = 0 if side < 0 else S[axis] - 1
@@ -576,12 +577,13 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
         far_sides[j, 0] = np.nan
         far_sides[j, 1] = np.nan
         close[j] = np.nan
+        inner[j] = np.nan
         a, b = (edge, j) if axis == 0 else (j, edge)
         if local_fit(G, q, a, b, 2, False, 4, coef) == 0:
             continue
-        for t in range(6):
-            depth = 0.5 if t == 0 else (1.0 if t == 2 else (1.2 if t == 5 else 1.5))
-            across = 0.5 if t < 2 or t == 5 else (0.0 if t == 2 else (0.3 if t == 3 else 0.7))
+        for t in range(7):
+            depth = 0.5 if t == 0 else (1.0 if t == 2 else (1.2 if t == 5 else (-0.5 if t == 6 else 1.5)))
+            across = 0.5 if t < 2 or t >= 5 else (0.0 if t == 2 else (0.3 if t == 3 else 0.7))
             ra = side * depth if axis == 0 else across
             rb = side * depth if axis == 1 else across
             x = coef[0, 0] + coef[1, 0] * ra + coef[2, 0] * rb + coef[3, 0] * ra * ra + coef[4, 0] * ra * rb \
@@ -600,5 +602,7 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
                 far[j] = v
             elif t == 5:
                 close[j] = v
+            elif t == 6:
+                inner[j] = v
             else:
                 far_sides[j, t - 3] = v

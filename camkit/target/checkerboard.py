@@ -1954,7 +1954,8 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
             step = np.empty((len(near_a), 2))
             far_sides = np.empty((len(near_a), 2))
             close_a = np.empty_like(near_a)
-            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a, step, far_sides, close_a)
+            inner_a = np.empty_like(near_a)
+            lattice_kernels.border_samples(G, qc, s, axis, side, near_a, far_a, step, far_sides, close_a, inner_a)
             # One step out, where the pattern's next corners would be: X-corners at most of the
             # places there inside the image (even one) mean the pattern goes on, whatever the
             # shades say; none at most of them, with at least half the places inside, mean it
@@ -2012,6 +2013,8 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
                 # The plain light margin, half a square past the outer squares, or where that
                 # lies past a narrow margin (a print trimmed close), a fifth of a square past.
                 out[(axis, side)] = "unknown"
+                if _washed_out(n_, inner_a[ok], dark):
+                    continue
                 for f_m in (f_, close_a[ok]):
                     if not np.isfinite(f_m).all():
                         continue
@@ -2022,6 +2025,24 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
                         out[(axis, side)] = "border"
                         break
     return out, ended
+
+
+def _washed_out(near: np.ndarray, inner: np.ndarray, dark: np.ndarray) -> bool:
+    """Whether light washes the pattern out towards a side: the outer squares (shades
+    ``near``, ``dark`` where dark) keep under 0.7 of the contrast of the lattice's last squares
+    (``inner``, half a square in, the other colour), their dark squares lifted by over 0.4 of
+    it. A glare on the print does that, and past it the burnt-out squares are as plain and as
+    light as a margin (probe view 3029 came back half-turned on such a side). On the rendered
+    corpus's true borders the outer squares keep 0.72 of that contrast or more where their dark
+    squares are lifted by over a third of it (benchmarks/notes.md, thirty-seventh session)."""
+    if not (np.isfinite(inner).all() and dark.any() and (~dark).any()):
+        return False
+    d_in, l_in = float(np.mean(inner[~dark])), float(np.mean(inner[dark]))
+    contrast = l_in - d_in
+    if contrast <= 0.0:
+        return False
+    d_out, l_out = float(np.mean(near[dark])), float(np.mean(near[~dark]))
+    return l_out - d_out < 0.7 * contrast and d_out - d_in > 0.4 * contrast
 
 
 def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[int, int] | None, str]:
