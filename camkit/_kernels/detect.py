@@ -184,24 +184,28 @@ def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def box_means(img: np.ndarray, cx: np.ndarray, cy: np.ndarray, half: np.ndarray, mean: np.ndarray,
-              spread: np.ndarray) -> None:  # pragma: no cover - numba
+def box_means(img: np.ndarray, cx: np.ndarray, cy: np.ndarray, half: np.ndarray, ceiling: float,
+              mean: np.ndarray, spread: np.ndarray, clipped: np.ndarray) -> None:  # pragma: no cover - numba
     """The mean of ``img``'s pixels in the box of ``2 half[i] + 1`` pixels a side centred on
-    pixel (``cx[i]``, ``cy[i]``) (inside the image: the caller checks) and their variance
-    (unbiased), for each i of the flat arrays."""
+    pixel (``cx[i]``, ``cy[i]``) (inside the image: the caller checks), their variance
+    (unbiased) and the fraction of them at ``ceiling`` or above, for each i of the flat arrays."""
     for i in range(cx.shape[0]):
         h = half[i]
         s = 0.0
         ss = 0.0
+        c = 0
         for y in range(cy[i] - h, cy[i] + h + 1):
             for x in range(cx[i] - h, cx[i] + h + 1):
                 v = img[y, x]
                 s += v
                 ss += v * v
+                if v >= ceiling:
+                    c += 1
         n = (2 * h + 1) * (2 * h + 1)
         m = s / n
         mean[i] = m
         spread[i] = max(ss - n * m * m, 0.0) / (n - 1)
+        clipped[i] = c / n
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -770,7 +770,14 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     bends within a square, an occluder over a square) or the shift would be larger, the
     corner is not shifted and the shift the gradient implies is its variance: how far the
     light may have moved it. Where any place lies outside the image, or the shades show no
-    contrast beyond three of its sigmas, nothing is read."""
+    contrast beyond three of its sigmas, nothing is read.
+
+    Clipped light (a glare burnt out to the image's ceiling) hides the gradient: where a light
+    square's places hold pixels at the ceiling, the gradient is read along each diagonal from
+    its own squares (the light one's a lower bound), and where it is beyond its noise the
+    corner is in doubt, its variance twice the square of the shift it implies; where a dark
+    square's places, or, with the squares outside the image, the corner's own window (``r``),
+    hold such pixels, its variance is infinite (it goes)."""
     n = len(corners)
     shift = np.zeros((n, 2))
     var = np.full(n, np.nan)
@@ -807,12 +814,31 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     cross = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
     ok = inside & (cross > 0.05 * l1 * l2) & (np.minimum(l1, l2) >= 4.0)
-    if not ok.any():
-        return nothing
-    idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
     img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
-    shade, spread = np.empty(cx.shape), np.empty(cx.shape)
-    detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), shade.ravel(), spread.ravel())
+    # The image is clipped where a plateau of its pixels (16 and a ten-thousandth at least)
+    # shares its maximum; pixels there are at the ceiling.
+    ceiling = float(img.max())
+    if np.count_nonzero(img >= ceiling) < max(16, 1e-4 * img.size):
+        ceiling = np.inf
+    # Where the squares cannot be read (they leave the image), a corner whose own window holds
+    # pixels at the ceiling sits in burnt-out light of unknown gradient, and goes.
+    rest = np.setdiff1d(np.flatnonzero(seen), idx[ok])
+    if len(rest):
+        px = np.round(corners[rest]).astype(np.int64)
+        px[:, 0] = np.clip(px[:, 0], 0, w - 1)
+        px[:, 1] = np.clip(px[:, 1], 0, h - 1)
+        half = np.minimum(r, np.minimum(np.minimum(px[:, 0], w - 1 - px[:, 0]), np.minimum(px[:, 1], h - 1 - px[:, 1])))
+        window = np.empty((3, len(rest)))
+        detect_kernels.box_means(img, px[:, 0], px[:, 1], half, ceiling, window[0], window[1], window[2])
+        burnt = rest[window[2] > 0]
+        var[burnt] = np.inf
+        doubt[burnt] = True
+    if not ok.any():
+        return shift, var, gradient, gcov, doubt
+    idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
+    shade, spread, clip = np.empty(cx.shape), np.empty(cx.shape), np.empty(cx.shape)
+    detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), ceiling, shade.ravel(),
+                             spread.ravel(), clip.ravel())
     n_px = (2 * b + 1) ** 2
     P = np.linalg.solve(MtM, M.transpose(0, 2, 1))  # (K, 5, 8)
     sol = np.einsum("kij,kj->ki", P, shade)
@@ -842,11 +868,47 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     plane &= np.hypot(*implied.T) <= _SHADE_MAX_SHIFT * r
     cs = Hi @ cg @ Hi.transpose(0, 2, 1)
     moved = read & plane
+    bent = read & ~plane
+    # Where a light square is clipped at the image's ceiling (a glare burnt out), the plane's
+    # reading is biased. The light's gradient is then read along each diagonal from its own
+    # square's four places: the dark squares' slope as it is, the light ones' a lower bound
+    # where one of them is clipped (nothing where both are). Where either slope is beyond its
+    # noise the corner is in doubt, not shifted, with twice the square of the shift they imply
+    # as its variance (what clipping hides taken as large as what is seen); where a dark square
+    # is clipped too, nothing of the light is known and the corner goes.
+    first_light = shade[:, colour > 0].mean(axis=1) > shade[:, colour < 0].mean(axis=1)
+    light = np.where(first_light[:, None], colour > 0, colour < 0)
+    clipped = ((clip > 0) & light).any(axis=1)
+    if clipped.any():
+        moved &= ~clipped
+        bent &= ~clipped
+        k = int(clipped.sum())
+        dirs, slopes, sloped = np.empty((k, 2, 2)), np.empty((k, 2)), np.zeros(k, dtype=bool)
+        for n_, places in enumerate((np.where(first_light[clipped, None], [2, 3, 6, 7], [0, 1, 4, 5]),
+                                     np.where(first_light[clipped, None], [0, 1, 4, 5], [2, 3, 6, 7]))):
+            at = np.take_along_axis(M[clipped, :, 1:3], places[..., None], axis=1)  # the boxes' centres
+            u = at[:, 0] - at[:, 1]
+            u /= np.maximum(np.hypot(*u.T), 1e-12)[:, None]
+            along = np.einsum("kaj,kj->ka", at, u)
+            along -= along.mean(axis=1, keepdims=True)
+            ss = np.maximum((along * along).sum(axis=1), 1e-12)
+            slope = (along * np.take_along_axis(shade[clipped], places, axis=1)).sum(axis=1) / ss
+            slope_var = (along * along * np.take_along_axis(var_shade[clipped], places, axis=1)).sum(axis=1) / ss ** 2
+            dirs[:, n_], slopes[:, n_] = u, slope
+            sloped |= slope * slope > _SHADE_CHI2 * slope_var
+        with np.errstate(divide="ignore", invalid="ignore"):
+            g = np.linalg.solve(np.where(np.abs(np.linalg.det(dirs))[:, None, None] > 0.05, dirs, np.eye(2)),
+                                slopes[..., None])[..., 0]
+        moves = (np.einsum("kij,kj->ki", Hi[clipped], g) ** 2).sum(axis=1)
+        where = idx[clipped]
+        var[where[sloped]] = 2.0 * moves[sloped]
+        burnt = ((clip[clipped] > 0) & ~light[clipped]).any(axis=1)
+        var[where[burnt]] = np.inf
+        doubt[where[sloped | burnt]] = True
     shift[idx[moved]] = implied[moved]
     var[idx[moved]] = 0.5 * (cs[moved, 0, 0] + cs[moved, 1, 1])
     gradient[idx[moved]] = sol[moved, 1:3]
     gcov[idx[moved]] = np.stack([cg[moved, 0, 0], cg[moved, 0, 1], cg[moved, 1, 1]], axis=-1)
-    bent = read & ~plane
     var[idx[bent]] = (implied[bent] ** 2).sum(axis=1)
     doubt[idx[bent]] = True
     return shift, var, gradient, gcov, doubt
