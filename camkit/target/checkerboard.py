@@ -390,7 +390,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        such square must be one colour across its width, as a second pattern past a narrow
        margin is not). A side beyond which
        the lattice had corners that step 4 dropped is never taken for the border (the
-       pattern goes on there). Where neither end shows it, or the lattice fits the board
+       pattern goes on there), nor one whose outer squares light washes out (under 0.7 of the
+       contrast of the lattice's last squares, the dark ones lifted by over 0.4 of it: a glare,
+       past which burnt-out squares are as plain and light as a margin). Where neither end shows it, or the lattice fits the board
        either way round, the board is not found.
        One step past each side, where the pattern's next corners would be, X-corners at the
        places inside the image (their circle a quarter of the spacing where that is under
@@ -435,7 +437,11 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        noise (what the plane misses counting as noise: a screen's moire), and the shift within a
        quarter of the fit's window. Where the light is there but no plane fits the shades
        (light that bends within a square, an occluder over one) or the shift would be larger,
-       the corner stays and that shift is its sigma.
+       the corner stays and that shift is its sigma. Where a light square is clipped at the
+       image's ceiling (a glare burnt out), the gradient is read along each diagonal from its
+       own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift; where
+       a dark square, or the corner's own window where its squares leave the image, is
+       clipped too, the corner goes.
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.02 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
