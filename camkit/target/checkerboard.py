@@ -392,8 +392,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        the lattice had corners that step 4 dropped is never taken for the border (the
        pattern goes on there), nor one whose outer squares light washes out (under 0.7 of the
        contrast of the lattice's last squares, the dark ones lifted by over 0.4 of it: a glare,
-       past which burnt-out squares are as plain and light as a margin). Where neither end shows it, or the lattice fits the board
-       either way round, the board is not found.
+       past which burnt-out squares are as plain and light as a margin). Where neither end
+       shows it, or the lattice fits the board either way round, the board is not found.
        One step past each side, where the pattern's next corners would be, X-corners at the
        places inside the image (their circle a quarter of the spacing where that is under
        4 px) mean the pattern goes on (a row missed, or a larger pattern),
@@ -439,9 +439,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        (light that bends within a square, an occluder over one) or the shift would be larger,
        the corner stays and that shift is its sigma. Where a light square is clipped at the
        image's ceiling (a glare burnt out), the gradient is read along each diagonal from its
-       own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift; where
-       a dark square, or the corner's own window where its squares leave the image, is
-       clipped too, the corner goes.
+       own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift;
+       where a dark square is clipped too, the corner goes.
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.02 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
@@ -782,8 +781,7 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     square's places hold pixels at the ceiling, the gradient is read along each diagonal from
     its own squares (the light one's a lower bound), and where it is beyond its noise the
     corner is in doubt, its variance twice the square of the shift it implies; where a dark
-    square's places, or, with the squares outside the image, the corner's own window (``r``),
-    hold such pixels, its variance is infinite (it goes)."""
+    square's places hold such pixels, its variance is infinite (it goes)."""
     n = len(corners)
     shift = np.zeros((n, 2))
     var = np.full(n, np.nan)
@@ -826,21 +824,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     ceiling = float(img.max())
     if np.count_nonzero(img >= ceiling) < max(16, 1e-4 * img.size):
         ceiling = np.inf
-    # Where the squares cannot be read (they leave the image), a corner whose own window holds
-    # pixels at the ceiling sits in burnt-out light of unknown gradient, and goes.
-    rest = np.setdiff1d(np.flatnonzero(seen), idx[ok])
-    if len(rest):
-        px = np.round(corners[rest]).astype(np.int64)
-        px[:, 0] = np.clip(px[:, 0], 0, w - 1)
-        px[:, 1] = np.clip(px[:, 1], 0, h - 1)
-        half = np.minimum(r, np.minimum(np.minimum(px[:, 0], w - 1 - px[:, 0]), np.minimum(px[:, 1], h - 1 - px[:, 1])))
-        window = np.empty((3, len(rest)))
-        detect_kernels.box_means(img, px[:, 0], px[:, 1], half, ceiling, window[0], window[1], window[2])
-        burnt = rest[window[2] > 0]
-        var[burnt] = np.inf
-        doubt[burnt] = True
     if not ok.any():
-        return shift, var, gradient, gcov, doubt
+        return nothing
     idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
     shade, spread, clip = np.empty(cx.shape), np.empty(cx.shape), np.empty(cx.shape)
     detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), ceiling, shade.ravel(),
@@ -936,7 +921,7 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
                                                                     det.window_px)
     sigma = np.fmax(det.sigma_px, noise)
     shifted = det.corners + shift
-    moved = np.isfinite(shift_var)
+    moved = ~np.isnan(shift_var)  # infinite where the light burnt the corner out
     sigma[moved] = np.sqrt(sigma[moved] ** 2 + shift_var[moved])
     corners, sigma = _symmetric(grey, shifted, sigma, noise, cols, white, unit if white < step else None,
                                 (gradient, gcov, doubt))
@@ -944,14 +929,22 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     noisy = np.isfinite(det.corners).all(axis=1) & (sigma > _MAX_CORNER_SIGMA)
     if not noisy.any():
         return Detection(True, det.corners, sigma, det.window_px, det.message)
-    worst = float(sigma[noisy].max())
+    burnt = noisy & np.isinf(sigma)
+    uncertain = noisy & ~burnt
+    reasons = []
+    if uncertain.any():
+        reasons.append(f"the image's noise or light leaves {int(uncertain.sum())} corners more than a quarter of a "
+                       f"pixel uncertain (sigma up to {float(sigma[uncertain].max()):.2f} px: too little contrast "
+                       "for the noise, or light that bends across the corner)")
+    if burnt.any():
+        n_burnt = int(burnt.sum())
+        reasons.append("1 corner lies in light clipped at white (a glare), which hides where it is" if n_burnt == 1
+                       else f"{n_burnt} corners lie in light clipped at white (a glare), which hides where they are")
     corners = det.corners.copy()
     corners[noisy] = np.nan
     sigma[noisy] = np.nan
     found = int(np.isfinite(corners).all(axis=1).sum())
-    why = (f"the image's noise or light leaves {int(noisy.sum())} corners more than a quarter of a pixel "
-           f"uncertain (sigma up to {worst:.2f} px: too little contrast for the noise, or light that bends "
-           "across the corner)")
+    why = "; ".join(reasons)
     if found < 4:
         return Detection.not_found(len(corners), f"not found: {why}", det.window_px)
     return Detection(True, corners, sigma, det.window_px, f"{det.message}; {found} kept: {why}")

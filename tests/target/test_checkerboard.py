@@ -996,7 +996,7 @@ def test_a_blurred_fisheye_view_whose_rim_column_the_check_drops_keeps_its_label
 
 @pytest.mark.parametrize(("seed", "alteration"), [(3046, "bayer_ca"), (3073, "noise"), (3060, "glare"),
                                                   (3183, "glare"), (3029, "glare"), (3273, "glare"),
-                                                  (3118, "glare"), (3277, "glare")])
+                                                  (3118, "glare"), (3277, "glare"), (3025, "glare")])
 def test_probe_views_that_returned_wrong_corners(seed, alteration):
     """Issue 21 item 2 on views the corpus does not draw (benchmarks/detect_probe.py); each
     returned corners over a pixel from the true corner of their label, and now returns none.
@@ -1023,7 +1023,7 @@ def test_probe_views_that_returned_wrong_corners(seed, alteration):
       0.03-0.05 px, one or both of its light squares burnt out. Clipped shades hide the light's
       gradient; such corners now read it along each diagonal from their own squares (the light
       one's a lower bound) and go where it could move them past their sigma's bound, or where
-      a dark square is burnt out too."""
+      a dark square is burnt out too (3025: a corner 1.28 px off, dropped so)."""
     from benchmarks.detect_corpus import score
     from benchmarks.detect_probe import alter
     from camkit.render.stress import stress_view
