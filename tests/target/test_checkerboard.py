@@ -1022,8 +1022,9 @@ def test_probe_views_that_returned_wrong_corners(seed, alteration):
     - 3118 and 3277 under a glare clipped at white: a corner each 1.0-1.2 px off with a sigma of
       0.03-0.05 px, one or both of its light squares burnt out. Clipped shades hide the light's
       gradient; such corners now read it along each diagonal from their own squares (the light
-      one's a lower bound) and go where it could move them past their sigma's bound, or where
-      a dark square is burnt out too (3025: a corner 1.28 px off, dropped so)."""
+      one's a lower bound) and go where it could move them past their sigma's bound. 3025 (a
+      dark square burnt out too) returned a corner 1.28 px off under a version that read such
+      corners the same way; there the plane's reading stands, and drops it."""
     from benchmarks.detect_corpus import score
     from benchmarks.detect_probe import alter
     from camkit.render.stress import stress_view
