@@ -745,6 +745,11 @@ _SHADE_CHI2 = 16.0
 _SHADE_MISFIT = 0.1
 #: ... and the shift it implies is at most this fraction of the saddle fit's window half-size.
 _SHADE_MAX_SHIFT = 0.25
+#: The image is clipped where a plateau of its pixels shares its maximum, this many and this
+#: fraction of them at least (an unclipped image's maximum is a few pixels); pixels there are at
+#: its ceiling, and clipped shades do not measure the light.
+_CLIP_PLATEAU = 16
+_CLIP_PLATEAU_FRACTION = 1e-4
 
 
 def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, inverse: np.ndarray,
@@ -819,10 +824,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
     ok = inside & (cross > 0.05 * l1 * l2) & (np.minimum(l1, l2) >= 4.0)
     img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
-    # The image is clipped where a plateau of its pixels (16 and a ten-thousandth at least)
-    # shares its maximum; pixels there are at the ceiling.
     ceiling = float(img.max())
-    if np.count_nonzero(img >= ceiling) < max(16, 1e-4 * img.size):
+    if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
         ceiling = np.inf
     if not ok.any():
         return nothing
@@ -2080,14 +2083,22 @@ def _border_evidence(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float
     return out, ended
 
 
+#: A side whose outer squares keep under this fraction of the contrast of the lattice's last
+#: squares, their dark squares lifted by over ``_WASHED_LIFT`` of it, is washed out by light (a
+#: glare): on the rendered corpus's true borders the outer squares keep 0.72 of that contrast or
+#: more where their dark squares are lifted by over a third of it; at probe view 3029's glare
+#: 0.60, lifted by 0.62 (benchmarks/notes.md, thirty-seventh session).
+_WASHED_CONTRAST = 0.7
+_WASHED_LIFT = 0.4
+
+
 def _washed_out(near: np.ndarray, inner: np.ndarray, dark: np.ndarray) -> bool:
     """Whether light washes the pattern out towards a side: the outer squares (shades
-    ``near``, ``dark`` where dark) keep under 0.7 of the contrast of the lattice's last squares
-    (``inner``, half a square in, the other colour), their dark squares lifted by over 0.4 of
-    it. A glare on the print does that, and past it the burnt-out squares are as plain and as
-    light as a margin (probe view 3029 came back half-turned on such a side). On the rendered
-    corpus's true borders the outer squares keep 0.72 of that contrast or more where their dark
-    squares are lifted by over a third of it (benchmarks/notes.md, thirty-seventh session)."""
+    ``near``, ``dark`` where dark) keep under ``_WASHED_CONTRAST`` of the contrast of the
+    lattice's last squares (``inner``, half a square in, the other colour), their dark squares
+    lifted by over ``_WASHED_LIFT`` of it. A glare on the print does that, and past it the
+    burnt-out squares are as plain and as light as a margin (probe view 3029 came back
+    half-turned on such a side)."""
     if not (np.isfinite(inner).all() and dark.any() and (~dark).any()):
         return False
     d_in, l_in = float(np.mean(inner[~dark])), float(np.mean(inner[dark]))
@@ -2095,7 +2106,7 @@ def _washed_out(near: np.ndarray, inner: np.ndarray, dark: np.ndarray) -> bool:
     if contrast <= 0.0:
         return False
     d_out, l_out = float(np.mean(near[dark])), float(np.mean(near[~dark]))
-    return l_out - d_out < 0.7 * contrast and d_out - d_in > 0.4 * contrast
+    return l_out - d_out < _WASHED_CONTRAST * contrast and d_out - d_in > _WASHED_LIFT * contrast
 
 
 def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[int, int] | None, str]:
