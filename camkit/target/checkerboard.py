@@ -823,13 +823,13 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     cross = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
     l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
     ok = inside & (cross > 0.05 * l1 * l2) & (np.minimum(l1, l2) >= 4.0)
+    if not ok.any():
+        return nothing
+    idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
     img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
     ceiling = float(img.max())
     if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
         ceiling = np.inf
-    if not ok.any():
-        return nothing
-    idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
     shade, spread, clip = np.empty(cx.shape), np.empty(cx.shape), np.empty(cx.shape)
     detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), ceiling, shade.ravel(),
                              spread.ravel(), clip.ravel())
@@ -892,9 +892,9 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
             slope_var = (along * along * np.take_along_axis(var_shade[clipped], places, axis=1)).sum(axis=1) / ss ** 2
             dirs[:, n_], slopes[:, n_] = u, slope
             sloped |= slope * slope > _SHADE_CHI2 * slope_var
-        with np.errstate(divide="ignore", invalid="ignore"):
-            g = np.linalg.solve(np.where(np.abs(np.linalg.det(dirs))[:, None, None] > 0.05, dirs, np.eye(2)),
-                                slopes[..., None])[..., 0]
+        # The two diagonals' directions fix the gradient (near-parallel ones: the slopes as they are).
+        g = np.linalg.solve(np.where(np.abs(np.linalg.det(dirs))[:, None, None] > 0.05, dirs, np.eye(2)),
+                            slopes[..., None])[..., 0]
         moves = (np.einsum("kij,kj->ki", Hi[clipped], g) ** 2).sum(axis=1)
         where = idx[clipped]
         var[where[sloped]] = 2.0 * moves[sloped]
