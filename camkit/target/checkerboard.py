@@ -419,8 +419,13 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        with the smoothing and window scaled by the factor (smoothing only patches around the
        corners) and tested there for point symmetry again, also against the board's own
        corners (over four times their median asymmetry, where that passes 0.05, is not a
-       clean junction: an occluder's edge that the coarse level's circle blurred), and the
-       level that labels the most corners wins (the finest on a tie).
+       clean junction: an occluder's edge that the coarse level's circle blurred). Where the
+       light leaves corners in doubt there by more than step 9 keeps (step 8: a glare's slope,
+       clipped light), they are fitted again with the smoothing halved (down to 1.5 px, the
+       window with it) as far as the image's noise leaves their saddle points 0.02 px uncertain
+       (median; :func:`_finer`: light that changes across a sharp corner moves its saddle point
+       by ``H^-1 g``, and ``H`` falls with the square of the smoothing). The level that labels
+       the most corners wins (the finest on a tie).
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
@@ -440,7 +445,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        the corner stays and that shift is its sigma. Where a light square is clipped at the
        image's ceiling (a glare burnt out), the gradient is read along each diagonal from its
        own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift
-       (where a dark square is clipped too, the plane's reading stands).
+       (where a dark square is clipped too, the plane's reading stands). A corner by the
+       image's edge, its squares' middles outside, is read half as far out.
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.02 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
@@ -470,7 +476,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     noise = _image_noise(grey)
     best = _detect(grey, board, noise)
     level = grey
-    factor = best_factor = 1
+    factor = 1
+    smoothing = _SIGMA
     n_corners = board.inner_cols * board.inner_rows
     while (best.n_found < n_corners and min(level.shape) >= 2 * _MIN_PYRAMID_SIDE
            and (not best.found or _corner_spacing(best.corners, board) >= _COARSER_FROM_PX * factor)):
@@ -481,10 +488,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
         factor *= 2
         coarse = _detect(level, board)
         if coarse.found:
-            full = _refine_full(grey, coarse, factor, board)
+            full, fine = _refine_full(grey, coarse, factor, board, noise)
             if full.found and (not best.found or full.n_found > best.n_found):
-                best, best_factor = full, factor
-    return _drop_noisy(grey, best, board, best_factor, noise, step) if best.found else best
+                best, smoothing = full, fine
+    return _drop_noisy(grey, best, board, smoothing, noise, step) if best.found else best
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -517,10 +524,14 @@ def _half(img: np.ndarray) -> np.ndarray:
     return out
 
 
-def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard) -> Detection:
+def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard,
+                 image_noise: float) -> tuple[Detection, float]:
     """Corners found at 1/factor resolution, refined on the full image: positions mapped back
     (x_full = (x + 0.5) * factor - 0.5), then the saddle fit with the smoothing and window scaled
-    by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN)."""
+    by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN). Then
+    fitted again at a finer scale where the light calls for it and the noise allows
+    (:func:`_finer`). Returns the detection and the smoothing (px) of the fit that placed its
+    corners."""
     cols, rows = board.inner_cols, board.inner_rows
     c = (coarse.corners + 0.5) * factor - 0.5
     seen = np.isfinite(c).all(axis=1)
@@ -558,13 +569,76 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     # bends a whole board: real fisheye view 26 enlarged 2x, 0.107 of its triples).
     if _bent_fraction(out.reshape(rows, cols, 2)) > max(0.1, _bent_fraction(c.reshape(rows, cols, 2))):
         return Detection.not_found(len(c), f"not found: the lattice found at 1/{factor} resolution is "
-                                           "inconsistent at full resolution", r)
+                                           "inconsistent at full resolution", r), _SIGMA * factor
     found = int(np.isfinite(out).all(axis=1).sum())
     if found < 4:
         return Detection.not_found(len(c), f"not found: of the corners found at 1/{factor} resolution, {found} pass "
-                                           "the checks at full resolution", r)
+                                           "the checks at full resolution", r), _SIGMA * factor
+    out, sigma, r, smoothing = _finer(grey, out, sigma, r, factor, board, image_noise)
     return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
-                           f"refined at full resolution (window {r} px)")
+                           f"refined at full resolution (window {r} px)"), smoothing
+
+
+#: A board refined from a coarser level whose light leaves corners in doubt is fitted again at
+#: the finest smoothing (halving from the coarse level's, down to ``_SIGMA``) at which the
+#: image's noise leaves its corners' saddle points this uncertain or less (median, px):
+#: ``_SYM_FROM_SIGMA``, below which noise is not what limits a corner (step 9).
+_FINER_NOISE = 0.02
+
+
+def _finer(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, r: int, factor: int, board: Checkerboard,
+           image_noise: float) -> tuple[np.ndarray, np.ndarray, int, float]:
+    """Corners refined at full resolution with the coarse level's smoothing (``_SIGMA * factor``,
+    window ``r``), fitted again at a finer scale where the light calls for it: the smoothing
+    halved, and the window with it (2 px at least), as far as ``_SIGMA``, at the finest scale
+    at which the image's noise (:func:`_noise_sigma`) leaves the board's corners
+    ``_FINER_NOISE`` px uncertain or less (median).
+
+    Light that changes across a corner moves its saddle point by ``H^-1 g``, and the Hessian
+    ``H`` of a sharp junction falls with the square of the scale it is read at: a glare's slope
+    over a sharp board of 105 px squares refined from the 1/4 level (smoothing 6 px, window 10)
+    put its corners 0.7-1.6 px off; at 1.5 px and a window of 2-3, 0.03-0.2 px
+    (benchmarks/notes.md, thirty-eighth session). So this runs only where the light leaves a
+    corner in doubt at the coarse scale beyond ``_MAX_CORNER_SIGMA`` (:func:`_shading_shift`:
+    step 8 would drop it). Elsewhere the coarse fit stands: a finer fit reads JPEG's error
+    beside the edges, which the noise measured in the squares' middles does not show. A corner
+    whose fit at the finer scale fails or moves more than ``factor`` px keeps its place.
+    Returns the corners, their sigmas, the window and the smoothing."""
+    cols, rows = board.inner_cols, board.inner_rows
+    coarse_smoothing = _SIGMA * factor
+    seen = np.isfinite(corners).all(axis=1)
+    scales = []
+    s = coarse_smoothing / 2
+    while s >= _SIGMA - 1e-9:
+        scales.append((s, max(2, round(r * s / coarse_smoothing))))
+        s /= 2
+    if not scales:
+        return corners, sigma, r, coarse_smoothing
+    # Only where the light leaves corners in doubt at the coarse scale by more than they may be
+    # (step 8 would drop them): the finer fit reads JPEG's error beside the edges, which the
+    # noise measured in the squares' middles does not show (blurred views under JPEG 41-57
+    # went 0.03-0.04 -> 0.06-0.08 px off at 1.5 px; benchmarks/notes.md, thirty-eighth session).
+    white, inverse = _noise_sigma(grey, corners, cols, rows, r, coarse_smoothing, image_noise)[1::2]
+    var, doubt = _shading_shift(grey, corners, cols, rows, inverse, white, r)[1::3]
+    if not (doubt & (var > _MAX_CORNER_SIGMA ** 2)).any():
+        return corners, sigma, r, coarse_smoothing
+    for s, rs in reversed(scales):  # the finest first
+        noise = _noise_sigma(grey, corners, cols, rows, rs, s, image_noise)[0][seen]
+        noise = noise[np.isfinite(noise)]
+        if len(noise) < 4 or np.median(noise) > _FINER_NOISE:
+            continue
+        half = rs + 9
+        mosaic, shift = _smoothed_patches(grey, corners[seen], half, s)
+        refined, sig = _saddle_fit(mosaic, corners[seen] + shift, rs)
+        refined -= shift
+        moved = np.hypot(*(refined - corners[seen]).T)
+        ok = np.isfinite(moved) & (moved <= factor) & _fits_well(sig)
+        out, out_sigma = corners.copy(), sigma.copy()
+        keep = np.flatnonzero(seen)[ok]
+        out[keep] = refined[ok]
+        out_sigma[keep] = sig[ok]
+        return out, out_sigma, rs, s
+    return corners, sigma, r, coarse_smoothing
 
 
 def _smoothed_patches(grey: np.ndarray, pts: np.ndarray, half: int, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -745,6 +819,10 @@ _SHADE_CHI2 = 16.0
 _SHADE_MISFIT = 0.1
 #: ... and the shift it implies is at most this fraction of the saddle fit's window half-size.
 _SHADE_MAX_SHIFT = 0.25
+#: Where a corner's places lie outside the image (a corner by its edge), they are read this
+#: fraction of the way out (a quarter and half a step from the corner; glare probe view 3009,
+#: benchmarks/notes.md, thirty-eighth session).
+_SHADE_NEAR_EDGE = 0.5
 #: The image is clipped where a plateau of its pixels shares its maximum, this many and this
 #: fraction of them at least (an unclipped image's maximum is a few pixels); pixels there are at
 #: its ceiling, and clipped shades do not measure the light.
@@ -779,7 +857,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     fit's window half-size ``r``. Where the gradient is there but no plane fits (light that
     bends within a square, an occluder over a square) or the shift would be larger, the
     corner is not shifted and the shift the gradient implies is its variance: how far the
-    light may have moved it. Where any place lies outside the image, or the shades show no
+    light may have moved it. Where a place lies outside the image (a corner by its edge), the
+    places are read ``_SHADE_NEAR_EDGE`` of the way out; where one still does, or the shades show no
     contrast beyond three of its sigmas, nothing is read.
 
     Clipped light (a glare burnt out to the image's ceiling) hides the gradient: where a light
@@ -805,16 +884,28 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     signs = np.array([[1.0, 1.0], [-1.0, -1.0], [1.0, -1.0], [-1.0, 1.0]] * 2)
     t = np.repeat([1.0, 0.5], 4)
     colour = np.array([1.0, 1.0, -1.0, -1.0] * 2)
-    d = (0.5 * t)[None, :, None] * (signs[None, :, :1] * e1[:, None] + signs[None, :, 1:] * e2[:, None])  # (K, 8, 2)
-    rad = _SHADE_RADIUS * np.minimum(np.hypot(*e1.T), np.hypot(*e2.T))[:, None] * t  # (K, 8)
-    # Each place's shade: the mean over a box of pixels (2b + 1 wide) about it (point samples
-    # alias with a screen's pixel grid).
-    b = np.maximum(1, np.round(rad)).astype(np.int64)
-    cx = np.round(c[:, None, 0] + d[..., 0]).astype(np.int64)
-    cy = np.round(c[:, None, 1] + d[..., 1]).astype(np.int64)
-    d = np.stack([cx - c[:, None, 0], cy - c[:, None, 1]], axis=-1)  # the boxes' centres
     h, w = grey.shape[:2]
-    inside = ((cx - b >= 0) & (cx + b <= w - 1) & (cy - b >= 0) & (cy + b <= h - 1)).all(axis=1)
+
+    def places(scale: float) -> tuple[np.ndarray, ...]:
+        """The boxes' centres (K, 8) and half-sizes, ``scale`` of the way out to them."""
+        d = (0.5 * t * scale)[None, :, None] * (signs[None, :, :1] * e1[:, None] + signs[None, :, 1:] * e2[:, None])
+        rad = _SHADE_RADIUS * np.minimum(np.hypot(*e1.T), np.hypot(*e2.T))[:, None] * t * scale  # (K, 8)
+        # Each place's shade: the mean over a box of pixels (2b + 1 wide) about it (point samples
+        # alias with a screen's pixel grid).
+        b = np.maximum(1, np.round(rad)).astype(np.int64)
+        cx = np.round(c[:, None, 0] + d[..., 0]).astype(np.int64)
+        cy = np.round(c[:, None, 1] + d[..., 1]).astype(np.int64)
+        inside = ((cx - b >= 0) & (cx + b <= w - 1) & (cy - b >= 0) & (cy + b <= h - 1)).all(axis=1)
+        return cx, cy, b, inside
+
+    cx, cy, b, inside = places(1.0)
+    # A corner near the image's edge, its squares' middles outside: read half as far out.
+    if not inside.all():
+        hx, hy, hb, hin = places(_SHADE_NEAR_EDGE)
+        near = ~inside & hin
+        cx[near], cy[near], b[near] = hx[near], hy[near], hb[near]
+        inside |= near
+    d = np.stack([cx - c[:, None, 0], cy - c[:, None, 1]], axis=-1)  # the boxes' centres
     k = len(idx)
     M = np.concatenate([np.ones((k, 8, 1)), d, np.broadcast_to((colour * (t == 1.0))[None, :, None], (k, 8, 1)),
                         np.broadcast_to((colour * (t == 0.5))[None, :, None], (k, 8, 1))], axis=2)
@@ -908,7 +999,7 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     return shift, var, gradient, gcov, doubt
 
 
-def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float,
+def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, smoothing: float, image_noise: float,
                 step: float = 0.0) -> Detection:
     """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
     the noise's (:func:`_noise_sigma`); corners shifted for the light's gradient
@@ -918,7 +1009,7 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     measured on the board is below it, the flat squares were flattened (JPEG) and the noise
     is read beside each corner instead (:func:`_symmetric`'s ``unit``)."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, _SIGMA * factor,
+    noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
                                                image_noise)
     shift, shift_var, gradient, gcov, doubt = _shading_shift(grey, det.corners, cols, rows, inverse, white,
                                                                     det.window_px)
