@@ -1059,7 +1059,7 @@ _SYM_FROM_SIGMA_FLAT = 0.05
 #: ... on the image smoothed by this Gaussian sigma (px): the gradients' noise otherwise
 #: inflates the normal matrix and the sigma reads low on dim boards.
 _SYM_SMOOTHING = 1.0
-#: ... and, for a corner moved there that lies in a whole 3x3 block of found corners, again
+#: ... and, for a corner moved there that has a whole 3x3 block of found corners near it, again
 #: out to this fraction of a square, kept where its sigma is the smaller (benchmarks/notes.md,
 #: thirty-first session).
 _SYM_WIDE_REACH = 0.7
@@ -1069,6 +1069,10 @@ _SYM_WIDE_REACH = 0.7
 #: beyond it (fisheye rims: 0.16 px off on a noise-free view without this test).
 _SYM_BLOCK_MISFIT = 0.03
 _SYM_BLOCK_NOISE = 1.5
+#: ... the block shifted by at most this many corners each way (a corner beside a hidden one:
+#: at 1, 95th percentile with noise 0.0947 / 0.1196 px on the corpus's seeds 0-999 / 1000-1999,
+#: at 2, 0.0945 / 0.1195, noise-free unchanged; benchmarks/notes.md, thirty-eighth session).
+_SYM_BLOCK_SHIFT = 2
 #: The symmetric point replaces the saddle point only within this distance of it (px), besides
 #: three of their combined sigmas: at half a pixel, the noisiest saddle points (0.4-1.1 px
 #: off on a dim board under noise of a quarter of its contrast) kept the bound, and their
@@ -1186,9 +1190,10 @@ def _local_maps(corners: np.ndarray, cols: int, spacing: float, reach: float = _
 def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
                 only: np.ndarray, corner_sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The local maps of :func:`_local_maps` (``a``, ``b``, usable) for the corners ``only``,
-    each a quadratic fitted on a whole 3x3 block of found corners that holds it: its own
-    neighbourhood where that is whole, else the nearest block shifted a corner inward (an
-    edge corner's). Only the quadratic's second-order terms shape the mirrored pairs (a
+    each a quadratic fitted on a whole 3x3 block of found corners near it: its own
+    neighbourhood where that is whole, else the nearest block shifted up to
+    ``_SYM_BLOCK_SHIFT`` corners (an edge corner's, inward; a corner beside a hidden one's).
+    Only the quadratic's second-order terms shape the mirrored pairs (a
     linear map mirrors every offset to its negative), and a quadratic's are the same over
     the whole plane, so a shifted block serves where the lens's bending changes little
     over a square: where its quadratic misses the block's corners by no more than
@@ -1196,19 +1201,22 @@ def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
     Corners in no such block have no map."""
     n = len(corners)
     rows = n // cols
-    found = np.zeros((rows + 4, cols + 4), dtype=bool)
-    found[2:-2, 2:-2] = np.isfinite(corners).all(axis=1).reshape(rows, cols)
-    # whole[r, c]: the 3x3 block centred on corner (r - 1, c - 1) (one row and column of padding) was found
-    whole = np.ones((rows + 2, cols + 2), dtype=bool)
+    P = _SYM_BLOCK_SHIFT
+    found = np.zeros((rows + 2 * P + 2, cols + 2 * P + 2), dtype=bool)
+    found[P + 1:-P - 1, P + 1:-P - 1] = np.isfinite(corners).all(axis=1).reshape(rows, cols)
+    # whole[r, c]: the 3x3 block centred on corner (r - P, c - P) (P rows and columns of padding) was found
+    whole = np.ones((rows + 2 * P, cols + 2 * P), dtype=bool)
     for dr in (-1, 0, 1):
         for dc in (-1, 0, 1):
-            whole &= found[1 + dr:rows + 3 + dr, 1 + dc:cols + 3 + dc]
+            whole &= found[1 + dr:rows + 2 * P + 1 + dr, 1 + dc:cols + 2 * P + 1 + dc]
     r, c = np.divmod(only, cols)
-    shifts = [(0, 0), (0, 1), (0, -1), (1, 0), (-1, 0), (1, 1), (1, -1), (-1, 1), (-1, -1)]  # (dc, dr)
+    # (dc, dr), the nearest blocks first
+    shifts = sorted(((dc, dr) for dr in range(-P, P + 1) for dc in range(-P, P + 1)),
+                    key=lambda t: (max(abs(t[0]), abs(t[1])), abs(t[0]) + abs(t[1]), abs(t[0]), -t[0], -t[1]))
     shift = np.zeros((len(only), 2), dtype=np.int64)
     ok = np.zeros(len(only), dtype=bool)
     for dc, dr in shifts:
-        take = ~ok & whole[r + 1 + dr, c + 1 + dc]
+        take = ~ok & whole[r + P + dr, c + P + dc]
         shift[take] = (dc, dr)
         ok |= take
     src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.int64)  # (9, 2)
@@ -1329,7 +1337,7 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     stays where the symmetric point lies more than three of their combined sigmas and a
     tenth of a pixel from it, or more than ``_SYM_AGREE_PX``, or cannot be placed (a sample
     outside the image, fewer than five neighbours).
-    A corner so moved that lies in a whole 3x3 block of found corners is fitted again out to
+    A corner so moved that has a whole 3x3 block of found corners near it is fitted again out to
     ``_SYM_WIDE_REACH`` of a square (the board is point-symmetric about an inner corner out
     to a whole square each way; the noise moves a fit over more of the edges less), on that
     block's quadratic map (:func:`_block_maps`: an edge corner's homography through five to

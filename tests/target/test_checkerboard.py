@@ -284,6 +284,37 @@ def test_the_wide_symmetric_fit_takes_its_map_where_a_quadratic_follows_the_lens
     assert wide < p95() + 0.01, wide
 
 
+def test_the_wide_symmetric_fit_takes_its_map_from_a_block_two_corners_away(monkeypatch):
+    # A board corner whose nearest whole 3x3 block of found corners lies two corners inward
+    # (a corner beside it hidden) takes that block's quadratic: on a lattice that is exactly a
+    # quadratic of its coordinates every block gives the same map, so the mirrored offsets
+    # equal those the corner's own block gives on the whole lattice. With blocks at most a
+    # corner away (the thirty-seventh session's rule) the corner had no map.
+    import camkit.target.checkerboard as cb
+
+    cols, rows = 8, 6
+    c, r = np.meshgrid(np.arange(cols, dtype=float), np.arange(rows, dtype=float))
+    x = 100 + 31 * c + 4 * r + 0.6 * c * c - 0.3 * c * r + 0.2 * r * r
+    y = 80 + 3 * c + 29 * r + 0.1 * c * c + 0.5 * c * r - 0.4 * r * r
+    corners = np.stack([x.ravel(), y.ravel()], axis=-1)
+    sigma = np.zeros(len(corners))
+    only = np.array([0])
+
+    def maps(pts):
+        a, b, ok = cb._block_maps(pts, cols, 31.0, cb._SYM_WIDE_REACH, only, sigma)
+        return a[0], b[0], bool(ok[0])
+
+    a_whole, b_whole, ok_whole = maps(corners)
+    hidden = corners.copy()
+    hidden[2] = np.nan  # corner (2, 0): every block within a corner of (0, 0) holds it
+    a, b, ok = maps(hidden)
+    assert ok_whole and ok
+    np.testing.assert_allclose(a, a_whole, atol=1e-9)
+    np.testing.assert_allclose(b, b_whole, atol=1e-9)
+    monkeypatch.setattr(cb, "_SYM_BLOCK_SHIFT", 1)
+    assert not maps(hidden)[2]
+
+
 def test_a_jpeg_flattened_board_reads_its_noise_beside_the_corners(monkeypatch):
     # JPEG with no sensor noise leaves the squares' middles flat (the noise measured there is
     # under one level of the file) and its error beside the edges, where the saddle fit reads:
