@@ -111,8 +111,9 @@ def main(argv: list[str] | None = None) -> int:
     a = np.concatenate([a, *(np.load(p) for p in args.load)])
     rng = np.random.default_rng(0)
     which = "every view's" if args.every else "backlit"
-    print(f"views {args.start}..{args.start + args.views - 1}: {which} corners with noise, camkit's error "
-          "against the Cramer-Rao bound")
+    span = f"views {args.start}..{args.start + args.views - 1}" if args.views else "no views run"
+    loaded = f" and {len(args.load)} saved runs" if args.load else ""
+    print(f"{span}{loaded}: {which} corners with noise, camkit's error against the Cramer-Rao bound")
     groups = [("noise only", a[:, 3] == 0), ("noise and JPEG", a[:, 3] > 0), ("all", a[:, 3] >= 0)]
     if args.every:
         groups += [("backlit", a[:, 4] == 1), ("lit", a[:, 4] == 0)]
