@@ -476,8 +476,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
     noise = _image_noise(grey)
     best = _detect(grey, board, noise)
     level = grey
-    factor = 1
-    smoothing = _SIGMA
+    factor = best_factor = 1
     n_corners = board.inner_cols * board.inner_rows
     while (best.n_found < n_corners and min(level.shape) >= 2 * _MIN_PYRAMID_SIDE
            and (not best.found or _corner_spacing(best.corners, board) >= _COARSER_FROM_PX * factor)):
@@ -488,10 +487,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
         factor *= 2
         coarse = _detect(level, board)
         if coarse.found:
-            full, fine = _refine_full(grey, coarse, factor, board, noise)
+            full = _refine_full(grey, coarse, factor, board)
             if full.found and (not best.found or full.n_found > best.n_found):
-                best, smoothing = full, fine
-    return _drop_noisy(grey, best, board, smoothing, noise, step) if best.found else best
+                best, best_factor = full, factor
+    return _drop_noisy(grey, best, board, best_factor, noise, step) if best.found else best
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -524,14 +523,11 @@ def _half(img: np.ndarray) -> np.ndarray:
     return out
 
 
-def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard,
-                 image_noise: float) -> tuple[Detection, float]:
+def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checkerboard) -> Detection:
     """Corners found at 1/factor resolution, refined on the full image: positions mapped back
     (x_full = (x + 0.5) * factor - 0.5), then the saddle fit with the smoothing and window scaled
-    by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN). Then
-    fitted again at a finer scale where the light calls for it and the noise allows
-    (:func:`_finer`). Returns the detection and the smoothing (px) of the fit that placed its
-    corners."""
+    by the factor; a corner that moves more than ``factor`` pixels is dropped (NaN) (step 8 may
+    fit them again finer: :func:`_finer`)."""
     cols, rows = board.inner_cols, board.inner_rows
     c = (coarse.corners + 0.5) * factor - 0.5
     seen = np.isfinite(c).all(axis=1)
@@ -569,14 +565,13 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
     # bends a whole board: real fisheye view 26 enlarged 2x, 0.107 of its triples).
     if _bent_fraction(out.reshape(rows, cols, 2)) > max(0.1, _bent_fraction(c.reshape(rows, cols, 2))):
         return Detection.not_found(len(c), f"not found: the lattice found at 1/{factor} resolution is "
-                                           "inconsistent at full resolution", r), _SIGMA * factor
+                                           "inconsistent at full resolution", r)
     found = int(np.isfinite(out).all(axis=1).sum())
     if found < 4:
         return Detection.not_found(len(c), f"not found: of the corners found at 1/{factor} resolution, {found} pass "
-                                           "the checks at full resolution", r), _SIGMA * factor
-    out, sigma, r, smoothing = _finer(grey, out, sigma, r, factor, board, image_noise)
+                                           "the checks at full resolution", r)
     return Detection(True, out, sigma, r, f"found {found} of {cols * rows} corners at 1/{factor} resolution, "
-                           f"refined at full resolution (window {r} px)"), smoothing
+                           f"refined at full resolution (window {r} px)")
 
 
 #: A board refined from a coarser level whose light leaves corners in doubt is fitted again at
@@ -586,59 +581,52 @@ def _refine_full(grey: np.ndarray, coarse: Detection, factor: int, board: Checke
 _FINER_NOISE = 0.02
 
 
-def _finer(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, r: int, factor: int, board: Checkerboard,
-           image_noise: float) -> tuple[np.ndarray, np.ndarray, int, float]:
-    """Corners refined at full resolution with the coarse level's smoothing (``_SIGMA * factor``,
-    window ``r``), fitted again at a finer scale where the light calls for it: the smoothing
-    halved, and the window with it (2 px at least), as far as ``_SIGMA``, at the finest scale
-    at which the image's noise (:func:`_noise_sigma`) leaves the board's corners
-    ``_FINER_NOISE`` px uncertain or less (median).
+def _finer(grey: np.ndarray, det: Detection, factor: int, board: Checkerboard,
+           image_noise: float) -> tuple[Detection, float] | None:
+    """A board found at 1/``factor`` resolution and refined with that level's smoothing
+    (``_SIGMA * factor``, window ``det.window_px``), fitted again at a finer scale: the
+    smoothing halved, and the window with it (2 px at least), as far as ``_SIGMA``, at the
+    finest scale at which the image's noise (:func:`_noise_sigma`) leaves the board's corners
+    ``_FINER_NOISE`` px uncertain or less (median). Returns the detection and its smoothing,
+    or None where no finer scale qualifies.
 
     Light that changes across a corner moves its saddle point by ``H^-1 g``, and the Hessian
     ``H`` of a sharp junction falls with the square of the scale it is read at: a glare's slope
     over a sharp board of 105 px squares refined from the 1/4 level (smoothing 6 px, window 10)
     put its corners 0.7-1.6 px off; at 1.5 px and a window of 2-3, 0.03-0.2 px
-    (benchmarks/notes.md, thirty-eighth session). So this runs only where the light leaves a
-    corner in doubt at the coarse scale beyond ``_MAX_CORNER_SIGMA`` (:func:`_shading_shift`:
-    step 8 would drop it). Elsewhere the coarse fit stands: a finer fit reads JPEG's error
-    beside the edges, which the noise measured in the squares' middles does not show. A corner
-    whose fit at the finer scale fails or moves more than ``factor`` px keeps its place.
-    Returns the corners, their sigmas, the window and the smoothing."""
+    (benchmarks/notes.md, thirty-eighth session). :func:`_drop_noisy` calls this only where
+    the light leaves a corner in doubt at the coarse scale beyond ``_MAX_CORNER_SIGMA``
+    (:func:`_shading_shift`: it would be dropped). Elsewhere the coarse fit stands: a finer fit
+    reads JPEG's error beside the edges, which the noise measured in the squares' middles does
+    not show. A corner whose fit at the finer scale fails or moves more than ``factor`` px is
+    dropped: its coarse place is what the light moved."""
     cols, rows = board.inner_cols, board.inner_rows
     coarse_smoothing = _SIGMA * factor
+    corners, r = det.corners, det.window_px
     seen = np.isfinite(corners).all(axis=1)
     scales = []
     s = coarse_smoothing / 2
     while s >= _SIGMA - 1e-9:
         scales.append((s, max(2, round(r * s / coarse_smoothing))))
         s /= 2
-    if not scales:
-        return corners, sigma, r, coarse_smoothing
-    # Only where the light leaves corners in doubt at the coarse scale by more than they may be
-    # (step 8 would drop them): the finer fit reads JPEG's error beside the edges, which the
-    # noise measured in the squares' middles does not show (blurred views under JPEG 41-57
-    # went 0.03-0.04 -> 0.06-0.08 px off at 1.5 px; benchmarks/notes.md, thirty-eighth session).
-    white, inverse = _noise_sigma(grey, corners, cols, rows, r, coarse_smoothing, image_noise)[1::2]
-    var, doubt = _shading_shift(grey, corners, cols, rows, inverse, white, r)[1::3]
-    if not (doubt & (var > _MAX_CORNER_SIGMA ** 2)).any():
-        return corners, sigma, r, coarse_smoothing
     for s, rs in reversed(scales):  # the finest first
         noise = _noise_sigma(grey, corners, cols, rows, rs, s, image_noise)[0][seen]
         noise = noise[np.isfinite(noise)]
         if len(noise) < 4 or np.median(noise) > _FINER_NOISE:
             continue
-        half = rs + 9
-        mosaic, shift = _smoothed_patches(grey, corners[seen], half, s)
+        mosaic, shift = _smoothed_patches(grey, corners[seen], rs + 9, s)
         refined, sig = _saddle_fit(mosaic, corners[seen] + shift, rs)
         refined -= shift
         moved = np.hypot(*(refined - corners[seen]).T)
         ok = np.isfinite(moved) & (moved <= factor) & _fits_well(sig)
-        out, out_sigma = corners.copy(), sigma.copy()
+        if ok.sum() < 4:
+            return None
+        out, out_sigma = np.full_like(corners, np.nan), np.full(len(corners), np.nan)
         keep = np.flatnonzero(seen)[ok]
         out[keep] = refined[ok]
         out_sigma[keep] = sig[ok]
-        return out, out_sigma, rs, s
-    return corners, sigma, r, coarse_smoothing
+        return Detection(True, out, out_sigma, rs, f"{det.message}, again at {s:g} px (window {rs} px)"), s
+    return None
 
 
 def _smoothed_patches(grey: np.ndarray, pts: np.ndarray, half: int, smoothing: float) -> tuple[np.ndarray, np.ndarray]:
@@ -999,7 +987,7 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     return shift, var, gradient, gcov, doubt
 
 
-def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, smoothing: float, image_noise: float,
+def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float,
                 step: float = 0.0) -> Detection:
     """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
     the noise's (:func:`_noise_sigma`); corners shifted for the light's gradient
@@ -1007,12 +995,23 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, smoothing
     (:func:`_symmetric`) take that estimate's; corners over ``_MAX_CORNER_SIGMA`` are
     dropped. ``step``: one level of the file's samples in the grey's units; where the noise
     measured on the board is below it, the flat squares were flattened (JPEG) and the noise
-    is read beside each corner instead (:func:`_symmetric`'s ``unit``)."""
+    is read beside each corner instead (:func:`_symmetric`'s ``unit``). ``factor``: the pyramid
+    level the corners were found at (their fit's smoothing ``_SIGMA * factor``); where the light
+    leaves a corner of such a board in doubt by more than ``_MAX_CORNER_SIGMA``, the board is
+    fitted again finer (:func:`_finer`) and read again."""
     cols, rows = board.inner_cols, board.inner_rows
-    noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
-                                               image_noise)
-    shift, shift_var, gradient, gcov, doubt = _shading_shift(grey, det.corners, cols, rows, inverse, white,
-                                                                    det.window_px)
+
+    def light(det: Detection, smoothing: float) -> tuple[np.ndarray, ...]:
+        noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
+                                                   image_noise)
+        return (noise, white, unit, *_shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px))
+
+    noise, white, unit, shift, shift_var, gradient, gcov, doubt = light(det, _SIGMA * factor)
+    if factor > 1 and (doubt & (shift_var > _MAX_CORNER_SIGMA ** 2)).any():
+        finer = _finer(grey, det, factor, board, image_noise)
+        if finer is not None:
+            det = finer[0]
+            noise, white, unit, shift, shift_var, gradient, gcov, doubt = light(det, finer[1])
     sigma = np.fmax(det.sigma_px, noise)
     shifted = det.corners + shift
     moved = np.isfinite(shift_var)
