@@ -419,13 +419,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        with the smoothing and window scaled by the factor (smoothing only patches around the
        corners) and tested there for point symmetry again, also against the board's own
        corners (over four times their median asymmetry, where that passes 0.05, is not a
-       clean junction: an occluder's edge that the coarse level's circle blurred). Where the
-       light leaves corners in doubt there by more than step 9 keeps (step 8: a glare's slope,
-       clipped light), they are fitted again with the smoothing halved (down to 1.5 px, the
-       window with it) as far as the image's noise leaves their saddle points 0.02 px uncertain
-       (median; :func:`_finer`: light that changes across a sharp corner moves its saddle point
-       by ``H^-1 g``, and ``H`` falls with the square of the smoothing). The level that labels
-       the most corners wins (the finest on a tie).
+       clean junction: an occluder's edge that the coarse level's circle blurred). The level
+       that labels the most corners wins (the finest on a tie).
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
@@ -446,7 +441,12 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        image's ceiling (a glare burnt out), the gradient is read along each diagonal from its
        own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift
        (where a dark square is clipped too, the plane's reading stands). A corner by the
-       image's edge, its squares' middles outside, is read half as far out.
+       image's edge, its squares' middles outside, is read half as far out. Where a board found
+       at a coarser level has corners the light leaves in doubt by more than a quarter of a
+       pixel, it is fitted again with the smoothing halved (down to 1.5 px, the window with it)
+       as far as the image's noise leaves its saddle points 0.02 px uncertain (median), and
+       read again (:func:`_finer`: ``H`` falls with the square of the smoothing, and the light
+       moves a sharp corner's saddle point less).
     9. Symmetry: where the noise leaves a corner's saddle point more than 0.02 px uncertain
        (a dim, noisy or JPEG-compressed board), the corner moves to the point through which
        the image around it, out to 0.3 of a square on the board, is point-symmetric, as a
