@@ -625,7 +625,8 @@ def _finer(grey: np.ndarray, det: Detection, factor: int, board: Checkerboard,
         keep = np.flatnonzero(seen)[ok]
         out[keep] = refined[ok]
         out_sigma[keep] = sig[ok]
-        return Detection(True, out, out_sigma, rs, f"{det.message}, again at {s:g} px (window {rs} px)"), s
+        return Detection(True, out, out_sigma, rs, f"{det.message}; the light left corners in doubt: fitted again "
+                                                   f"at {s:g} px (window {rs} px), {int(ok.sum())} kept"), s
     return None
 
 
