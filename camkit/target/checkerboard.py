@@ -960,16 +960,16 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
         bent &= ~clipped
         k = int(clipped.sum())
         dirs, slopes, sloped = np.empty((k, 2, 2)), np.empty((k, 2)), np.zeros(k, dtype=bool)
-        for n_, places in enumerate((np.where(first_light[clipped, None], [2, 3, 6, 7], [0, 1, 4, 5]),
-                                     np.where(first_light[clipped, None], [0, 1, 4, 5], [2, 3, 6, 7]))):
-            at = np.take_along_axis(M[clipped, :, 1:3], places[..., None], axis=1)  # the boxes' centres
+        for n_, own in enumerate((np.where(first_light[clipped, None], [2, 3, 6, 7], [0, 1, 4, 5]),
+                                  np.where(first_light[clipped, None], [0, 1, 4, 5], [2, 3, 6, 7]))):
+            at = np.take_along_axis(M[clipped, :, 1:3], own[..., None], axis=1)  # the boxes' centres
             u = at[:, 0] - at[:, 1]
             u /= np.maximum(np.hypot(*u.T), 1e-12)[:, None]
             along = np.einsum("kaj,kj->ka", at, u)
             along -= along.mean(axis=1, keepdims=True)
             ss = np.maximum((along * along).sum(axis=1), 1e-12)
-            slope = (along * np.take_along_axis(shade[clipped], places, axis=1)).sum(axis=1) / ss
-            slope_var = (along * along * np.take_along_axis(var_shade[clipped], places, axis=1)).sum(axis=1) / ss ** 2
+            slope = (along * np.take_along_axis(shade[clipped], own, axis=1)).sum(axis=1) / ss
+            slope_var = (along * along * np.take_along_axis(var_shade[clipped], own, axis=1)).sum(axis=1) / ss ** 2
             dirs[:, n_], slopes[:, n_] = u, slope
             sloped |= slope * slope > _SHADE_CHI2 * slope_var
         # The two diagonals' directions fix the gradient (near-parallel ones: the slopes as they are).
@@ -1002,17 +1002,19 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     fitted again finer (:func:`_finer`) and read again."""
     cols, rows = board.inner_cols, board.inner_rows
 
-    def light(det: Detection, smoothing: float) -> tuple[np.ndarray, ...]:
+    def read_light(det: Detection, smoothing: float) -> tuple[np.ndarray, ...]:
+        """Step 8's readings of ``det`` fitted at ``smoothing``: the noise's (:func:`_noise_sigma`:
+        sigma, white, unit) and the light's (:func:`_shading_shift`)."""
         noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
                                                    image_noise)
         return (noise, white, unit, *_shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px))
 
-    noise, white, unit, shift, shift_var, gradient, gcov, doubt = light(det, _SIGMA * factor)
+    noise, white, unit, shift, shift_var, gradient, gcov, doubt = read_light(det, _SIGMA * factor)
     if factor > 1 and (doubt & (shift_var > _MAX_CORNER_SIGMA ** 2)).any():
         finer = _finer(grey, det, factor, board, image_noise)
         if finer is not None:
             det = finer[0]
-            noise, white, unit, shift, shift_var, gradient, gcov, doubt = light(det, finer[1])
+            noise, white, unit, shift, shift_var, gradient, gcov, doubt = read_light(det, finer[1])
     sigma = np.fmax(det.sigma_px, noise)
     shifted = det.corners + shift
     moved = np.isfinite(shift_var)

@@ -1074,9 +1074,9 @@ def test_a_sharp_board_refined_from_a_coarse_level_is_fitted_again_finer(monkeyp
     0.7-0.9. Where the light leaves corners in doubt at the coarse scale, the refinement now
     goes on to a finer smoothing while the noise allows, and step 8 reads the light of a
     corner at the image's edge half as far out; every corner kept lies within a quarter of a
-    pixel. Without the finer fit they lie over half a pixel off;
-    without the reading at the edge two kept corners move to points of symmetry that the
-    clipped light pulls 0.4-0.7 px off."""
+    pixel. Without the reading at the edge two kept corners move to points of symmetry that
+    the clipped light pulls 0.4-0.7 px off; without the finer fit too, the corners lie over
+    half a pixel off (median)."""
     import camkit.target.checkerboard as cb
     from benchmarks.detect_corpus import best_labelling
     from benchmarks.detect_probe import alter
