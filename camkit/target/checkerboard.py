@@ -454,7 +454,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        CVPR 2020): it reads the squares' edges along their length where the saddle fit reads
        a few pixels, so the noise moves it less, and the corner takes its sigma (which counts
        the noise in the gradients the fit reads: where that noise is half of them, the point
-       has none). Where the two estimates disagree beyond their sigmas the saddle point stays. Below 0.02 px (twice
+       has none). A corner at the board's outer corner, or beside hidden ones, takes its map of
+       the board from a block of found corners near it. Where the two estimates disagree
+       beyond their sigmas the saddle point stays. Below 0.02 px (twice
        the symmetric point's own error on noise-free renders) the saddle point stays too:
        noise is not what limits such a corner, and on clean real photos the two estimators
        differ systematically (benchmarks/notes.md, fourteenth session). Where the noise is
@@ -1075,6 +1077,11 @@ _SYM_BLOCK_NOISE = 1.5
 #: at 1, 95th percentile with noise 0.0947 / 0.1196 px on the corpus's seeds 0-999 / 1000-1999,
 #: at 2, 0.0945 / 0.1195, noise-free unchanged; benchmarks/notes.md, thirty-eighth session).
 _SYM_BLOCK_SHIFT = 2
+#: ... a block of which this many of its nine corners were found, where no whole one is near (a
+#: quadratic has six coefficients a coordinate, and :func:`_local_maps` fits one on eight too):
+#: at 9 the corpus's 95th percentile with noise was 0.1046 px over seeds 0-1999, at 8 0.1041,
+#: one more eligible board found (benchmarks/notes.md, thirty-ninth session).
+_SYM_BLOCK_LEAST = 8
 #: The symmetric point replaces the saddle point only within this distance of it (px), besides
 #: three of their combined sigmas: at half a pixel, the noisiest saddle points (0.4-1.1 px
 #: off on a dim board under noise of a quarter of its contrast) kept the bound, and their
@@ -1194,7 +1201,9 @@ def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
     """The local maps of :func:`_local_maps` (``a``, ``b``, usable) for the corners ``only``,
     each a quadratic fitted on a whole 3x3 block of found corners near it: its own
     neighbourhood where that is whole, else the nearest block shifted up to
-    ``_SYM_BLOCK_SHIFT`` corners (an edge corner's, inward; a corner beside a hidden one's).
+    ``_SYM_BLOCK_SHIFT`` corners (an edge corner's, inward; a corner beside a hidden one's);
+    where no whole block is that near, the nearest with ``_SYM_BLOCK_LEAST`` of its nine
+    corners found, fitted on those.
     Only the quadratic's second-order terms shape the mirrored pairs (a
     linear map mirrors every offset to its negative), and a quadratic's are the same over
     the whole plane, so a shifted block serves where the lens's bending changes little
@@ -1206,37 +1215,45 @@ def _block_maps(corners: np.ndarray, cols: int, spacing: float, reach: float,
     P = _SYM_BLOCK_SHIFT
     found = np.zeros((rows + 2 * P + 2, cols + 2 * P + 2), dtype=bool)
     found[P + 1:-P - 1, P + 1:-P - 1] = np.isfinite(corners).all(axis=1).reshape(rows, cols)
-    # whole[r, c]: the 3x3 block centred on corner (r - P, c - P) (P rows and columns of padding) was found
-    whole = np.ones((rows + 2 * P, cols + 2 * P), dtype=bool)
+    # count[r, c]: how many of the 3x3 block centred on corner (r - P, c - P) (P rows and columns of
+    # padding) were found
+    count = np.zeros((rows + 2 * P, cols + 2 * P), dtype=np.int64)
     for dr in (-1, 0, 1):
         for dc in (-1, 0, 1):
-            whole &= found[1 + dr:rows + 2 * P + 1 + dr, 1 + dc:cols + 2 * P + 1 + dc]
+            count += found[1 + dr:rows + 2 * P + 1 + dr, 1 + dc:cols + 2 * P + 1 + dc]
     r, c = np.divmod(only, cols)
     # (dc, dr), the nearest blocks first
     shifts = sorted(((dc, dr) for dr in range(-P, P + 1) for dc in range(-P, P + 1)),
                     key=lambda t: (max(abs(t[0]), abs(t[1])), abs(t[0]) + abs(t[1]), abs(t[0]), -t[0], -t[1]))
     shift = np.zeros((len(only), 2), dtype=np.int64)
     ok = np.zeros(len(only), dtype=bool)
-    for dc, dr in shifts:
-        take = ~ok & whole[r + P + dr, c + P + dc]
-        shift[take] = (dc, dr)
-        ok |= take
+    for least in (9, _SYM_BLOCK_LEAST):
+        for dc, dr in shifts:
+            take = ~ok & (count[r + P + dr, c + P + dc] >= least)
+            shift[take] = (dc, dr)
+            ok |= take
     src = np.array([(dc, dr) for dr in (-1, 0, 1) for dc in (-1, 0, 1)], dtype=np.int64)  # (9, 2)
     off = src[None] + shift[:, None]  # (K, 9, 2): the block's corners relative to the corner
     rr = np.clip(r[:, None] + off[..., 1], 0, rows - 1)
     cc = np.clip(c[:, None] + off[..., 0], 0, cols - 1)
+    inside = ((r[:, None] + off[..., 1] >= 0) & (r[:, None] + off[..., 1] < rows)
+              & (c[:, None] + off[..., 0] >= 0) & (c[:, None] + off[..., 0] < cols))
     scale = max(float(spacing), 1.0)
     rel = (corners[rr * cols + cc] - corners[only][:, None]) / scale  # (K, 9, 2)
+    have = inside & np.isfinite(rel).all(axis=2)
+    rel = np.where(have[..., None], rel, 0.0)
     ends, k = _map_ends(spacing, reach)
     mapped = np.full((len(only), len(ends), 2), np.nan)
     if ok.any():
         Q = _quad_basis(off[ok].astype(np.float64))  # (K', 9, 6)
-        coef = np.linalg.solve(Q.transpose(0, 2, 1) @ Q, Q.transpose(0, 2, 1) @ rel[ok])  # (K', 6, 2)
+        Qw = Q * have[ok][..., None]
+        coef = np.linalg.solve(Qw.transpose(0, 2, 1) @ Q, Qw.transpose(0, 2, 1) @ rel[ok])  # (K', 6, 2)
         mapped[ok] = _quad_basis(ends)[None] @ coef * scale
-        misfit = np.sqrt(((Q @ coef - rel[ok]) ** 2).sum(axis=2).mean(axis=1)) * scale  # px
+        res2 = ((Q @ coef - rel[ok]) ** 2).sum(axis=2) * have[ok]
+        misfit = np.sqrt(res2.sum(axis=1) / have[ok].sum(axis=1)) * scale  # px
         moved = np.any(shift[ok] != 0, axis=1)
         with np.errstate(invalid="ignore"):
-            spread = np.sqrt(np.mean(corner_sigma[(rr * cols + cc)[ok]] ** 2, axis=1))
+            spread = np.sqrt(np.nanmean(np.where(have[ok], corner_sigma[(rr * cols + cc)[ok]], np.nan) ** 2, axis=1))
             bent = moved & ~(misfit <= _SYM_BLOCK_MISFIT + _SYM_BLOCK_NOISE * spread)
         ok[np.flatnonzero(ok)[bent]] = False
     a, b, usable = _split_map(mapped, k, scale)[:3]
@@ -1338,8 +1355,12 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     half of it, the fit follows the noise and the point has no sigma). The saddle point
     stays where the symmetric point lies more than three of their combined sigmas and a
     tenth of a pixel from it, or more than ``_SYM_AGREE_PX``, or cannot be placed (a sample
-    outside the image, fewer than five neighbours).
-    A corner so moved that has a whole 3x3 block of found corners near it is fitted again out to
+    outside the image, no map). A corner with fewer than five of its 3x3 neighbourhood found
+    (a board's outermost corners, a corner beside hidden ones) takes the map of a block near
+    it (:func:`_block_maps`, as the wide fit below; before the thirty-ninth session such
+    corners kept their saddle points: 3994 of the corpus's 71028 noisy corners, 754 of them
+    over 0.1 px).
+    A corner so moved that has a 3x3 block of found corners near it is fitted again out to
     ``_SYM_WIDE_REACH`` of a square (the board is point-symmetric about an inner corner out
     to a whole square each way; the noise moves a fit over more of the edges less), on that
     block's quadratic map (:func:`_block_maps`: an edge corner's homography through five to
@@ -1373,6 +1394,11 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
         return corners, sigma
     idx = np.flatnonzero(noisy)
     a, b, usable = _local_maps(corners, cols, spacing, only=idx)[:3]
+    if not usable.all():  # fewer than five of its 3x3 neighbourhood found: a block near it
+        ab, bb, okb = _block_maps(corners, cols, spacing, _SYM_REACH, idx[~usable], sigma)
+        lack = np.flatnonzero(~usable)
+        a[lack[okb]], b[lack[okb]] = ab[okb], bb[okb]
+        usable[lack[okb]] = True
     a, b, use = a[usable], b[usable], idx[usable]
     if len(use) == 0:
         return corners, sigma
