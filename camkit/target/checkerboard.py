@@ -454,8 +454,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        CVPR 2020): it reads the squares' edges along their length where the saddle fit reads
        a few pixels, so the noise moves it less, and the corner takes its sigma (which counts
        the noise in the gradients the fit reads: where that noise is half of them, the point
-       has none). A corner at the board's outer corner, or beside hidden ones, takes its map of
-       the board from a block of found corners near it. Where the two estimates disagree
+       has none). The board's outermost corners, and corners beside hidden ones, take their
+       map of the board from a block of found corners near them. Where the two estimates disagree
        beyond their sigmas the saddle point stays. Below 0.02 px (twice
        the symmetric point's own error on noise-free renders) the saddle point stays too:
        noise is not what limits such a corner, and on clean real photos the two estimators
