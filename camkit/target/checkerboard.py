@@ -440,7 +440,11 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        the corner stays and that shift is its sigma. Where a light square is clipped at the
        image's ceiling (a glare burnt out), the gradient is read along each diagonal from its
        own squares, and a corner it could move stays, its sigma grown by 1.4 times that shift
-       (where a dark square is clipped too, the plane's reading stands). A corner by the
+       (where a dark square is clipped too, the plane's reading stands). Light is smooth over
+       more than a square, and under noise four squares do not read a vignetting's slope: where
+       the shades of the squares within three of the corner (a 6x6 block, their middles) lie on
+       a plane of light, that plane's slope replaces the four squares' reading, as read, not
+       only where it passes its noise (:func:`_board_light`). A corner by the
        image's edge, its squares' middles outside, is read half as far out. Where a board found
        at a coarser level has corners the light leaves in doubt by more than a quarter of a
        pixel, it is fitted again with the smoothing halved (down to 1.5 px, the window with it)
@@ -990,6 +994,139 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     return shift, var, gradient, gcov, doubt
 
 
+#: Step 8's light over the board: each corner's gradient of the light is read from the squares
+#: within this many squares of it each way (a plane over a 6x6 block of them). On the stress
+#: corpus's seeds 0-1999, 95th percentile with noise 0.1041 px with step 8's four squares alone,
+#: 0.0986 / 0.0978 / 0.0973 / 0.0976 px over blocks of 4x4 / 6x6 / 8x8 / 12x12 squares, and
+#: 0.1005 px with a quadratic over 6x6 (benchmarks/notes.md, fortieth session).
+_LIGHT_SQUARES = 3
+#: ... each square's shade the mean over a box about its middle reaching this fraction of the
+#: way to its nearest side (half-diagonal 0.5: clear of its edges' blur).
+_LIGHT_BOX = 0.35
+#: ... and a plane describes the light where the squares miss it by at most three of their
+#: noise's sigmas plus this fraction of the squares' half-contrast (RMS), as step 8's
+#: ``_SHADE_MISFIT``: more is an occluder, a glare's spot, a shadow's edge, a second pattern.
+_LIGHT_MISFIT = 0.1
+
+
+def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, inverse: np.ndarray, white: float,
+                 r: int, step: float, local: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """Step 8 again over more of the board: each corner's gradient of the light read from the
+    squares around it, in place of :func:`_shading_shift`'s (``local``, the same five arrays)
+    wherever it can be read. Returns the five arrays of :func:`_shading_shift`.
+
+    :func:`_shading_shift` reads the gradient from the corner's own four squares, at most
+    three quarters of a square from it, and keeps it only where it is beyond its noise (a
+    chi-square of ``_SHADE_CHI2``): under noise or JPEG the vignetting's and the uneven
+    light's slope (a tenth to a third of a percent of the contrast per pixel) is not, and the
+    point of symmetry (step 9) of a blurred corner lies its ``sens`` times that slope off (on
+    stress view 1496 a drawing of the exact pattern with the fitted slope reproduced a
+    corner's 0.07 px offset to 0.001 px; benchmarks/notes.md, thirty-ninth session). Light is
+    smooth over far more than a square. Here every square of the board with its four corners
+    known (the outer ones' outer corners continued a step, as :func:`_square_middles`) gives
+    one shade: the mean over a box about its middle reaching ``_LIGHT_BOX`` of the way to its
+    nearest side, its variance the larger of the white noise ``white``, the box's own spread
+    and a quantisation's (``step`` squared over 12) over its pixels; boxes outside the image
+    or holding pixels clipped at the image's ceiling give none. Each corner's squares within
+    ``_LIGHT_SQUARES`` each way (a 6x6 block, less at the board's edges) are fitted (weighted
+    least squares) with a plane for their mean level and one for their half-contrast, the
+    colour the squares' checker parity; the first plane's slope is the gradient, its
+    covariance the fit's (scaled up by the residuals' chi-square per degree of freedom where
+    that is above 1). It stands where the plane fits (``_LIGHT_MISFIT``), at least three
+    degrees of freedom are left, and the saddle point's shift it implies, ``H^-1 g``, is within
+    ``_SHADE_MAX_SHIFT`` of the fit's window half-size ``r``; the saddle point is then shifted
+    by that, with its variance, and the gradient goes to step 9. The gradient is read to a
+    tenth or less of the four squares' noise, so it is used as read, without a chi-square's
+    bar. Corners the local reading leaves in doubt (a clipped glare, light that bends within a
+    square) stay as it left them."""
+    shift, var, gradient, gcov, doubt = (a.copy() for a in local)
+    n = len(corners)
+    if n < 4 or not np.isfinite(corners).any():
+        return shift, var, gradient, gcov, doubt
+    G = np.full((rows + 2, cols + 2, 2), np.nan)
+    G[1:-1, 1:-1] = corners.reshape(rows, cols, 2)
+    G[0, 1:-1] = 2 * G[1, 1:-1] - G[2, 1:-1]
+    G[-1, 1:-1] = 2 * G[-2, 1:-1] - G[-3, 1:-1]
+    G[:, 0] = 2 * G[:, 1] - G[:, 2]
+    G[:, -1] = 2 * G[:, -2] - G[:, -3]
+    ring = np.stack([G[:-1, :-1], G[:-1, 1:], G[1:, 1:], G[1:, :-1]], axis=2)  # (rows + 1, cols + 1, 4, 2)
+    mid = ring.mean(axis=2)
+    e = np.roll(ring, -1, axis=2) - ring
+    to_mid = mid[:, :, None] - ring
+    with np.errstate(divide="ignore", invalid="ignore"):
+        clear = (np.abs(e[..., 0] * to_mid[..., 1] - e[..., 1] * to_mid[..., 0]) / np.hypot(*np.moveaxis(e, -1, 0))
+                 ).min(axis=2)
+    h, w = grey.shape[:2]
+    known = np.isfinite(mid).all(axis=2) & np.isfinite(clear)
+    half = np.where(known, np.round(_LIGHT_BOX * np.where(known, clear, 0.0)), 0).astype(np.int64)
+    cx = np.round(np.where(known, mid[..., 0], -1.0)).astype(np.int64)
+    cy = np.round(np.where(known, mid[..., 1], -1.0)).astype(np.int64)
+    box = known & (half >= 1) & (cx - half >= 0) & (cy - half >= 0) & (cx + half <= w - 1) & (cy + half <= h - 1)
+    at = np.flatnonzero(box.ravel())
+    if len(at) < 7:
+        return shift, var, gradient, gcov, doubt
+    img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
+    ceiling = float(img.max())
+    if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
+        ceiling = np.inf
+    mean, spread, clip = np.empty(len(at)), np.empty(len(at)), np.empty(len(at))
+    detect_kernels.box_means(img, cx.ravel()[at], cy.ravel()[at], half.ravel()[at], ceiling, mean, spread, clip)
+    shade = np.full(box.size, np.nan)
+    shade[at] = np.where(clip > 0, np.nan, mean)
+    shade_var = np.full(box.size, np.inf)
+    shade_var[at] = np.fmax(np.fmax(white ** 2, spread), step * step / 12.0) / (2 * half.ravel()[at] + 1) ** 2
+    shade, shade_var = shade.reshape(box.shape), shade_var.reshape(box.shape)
+    sr, sc = np.mgrid[0:rows + 1, 0:cols + 1]
+    parity = np.where((sr + sc) % 2 == 0, 1.0, -1.0)
+    # Corner (i, j) lies between squares i, i + 1 (rows) and j, j + 1 (columns) of the
+    # (rows + 1) x (cols + 1) squares; its block reaches _LIGHT_SQUARES of them each way.
+    k = np.arange(-_LIGHT_SQUARES + 1, _LIGHT_SQUARES + 1)
+    ci, cj = np.divmod(np.arange(n), cols)
+    qi = np.clip((ci[:, None, None] + k[None, :, None]) * np.ones((1, 1, len(k)), dtype=np.int64), 0, rows)
+    qj = np.clip((cj[:, None, None] + k[None, None, :]) * np.ones((1, len(k), 1), dtype=np.int64), 0, cols)
+    inb = ((ci[:, None, None] + k[None, :, None] >= 0) & (ci[:, None, None] + k[None, :, None] <= rows)
+           & (cj[:, None, None] + k[None, None, :] >= 0) & (cj[:, None, None] + k[None, None, :] <= cols))
+    qi, qj, inb = qi.reshape(n, -1), qj.reshape(n, -1), inb.reshape(n, -1)
+    s, v, col = shade[qi, qj], shade_var[qi, qj], parity[qi, qj]
+    d = mid[qi, qj] - corners[:, None]
+    have = inb & np.isfinite(s) & np.isfinite(d).all(axis=2) & np.isfinite(corners).all(axis=1)[:, None]
+    d = np.where(have[..., None], d, 0.0)
+    M = np.stack([np.ones(s.shape), d[..., 0], d[..., 1], col, col * d[..., 0], col * d[..., 1]], axis=-1)
+    M = M * have[..., None]
+    wt = np.where(have, 1.0 / np.where(have, v, 1.0), 0.0)
+    s = np.where(have, s, 0.0)
+    count = have.sum(axis=1)
+    MtW = M.transpose(0, 2, 1) * wt[:, None, :]
+    A = MtW @ M
+    with np.errstate(invalid="ignore"):
+        # Both colours and a spread of places in two directions: the design has full rank.
+        cond = np.linalg.cond(np.where((count >= 9)[:, None, None], A, np.eye(6)))
+    idx = np.flatnonzero((count >= 9) & (cond < 1e12))
+    if len(idx) == 0:
+        return shift, var, gradient, gcov, doubt
+    Ai = np.linalg.inv(A[idx])
+    sol = (Ai @ (MtW[idx] @ s[idx, :, None]))[..., 0]
+    res = (s[idx] - np.einsum("kaj,kj->ka", M[idx], sol)) * have[idx]
+    dof = count[idx] - 6
+    chi2 = (res * res * wt[idx]).sum(axis=1) / dof
+    misfit = np.sqrt((res * res).sum(axis=1) / dof)
+    noise = np.sqrt((np.where(have[idx], v[idx], 0.0)).sum(axis=1) / count[idx])
+    contrast = np.abs(sol[:, 3])
+    cov = Ai * np.fmax(chi2, 1.0)[:, None, None]
+    cg = cov[:, 1:3, 1:3]
+    Hi = _sym2(np.nan_to_num(inverse[idx]))
+    implied = np.einsum("kij,kj->ki", Hi, sol[:, 1:3])
+    cs = Hi @ cg @ Hi.transpose(0, 2, 1)
+    use = ((misfit <= 3.0 * noise + _LIGHT_MISFIT * contrast) & (contrast > 0) & ~doubt[idx]
+           & np.isfinite(inverse[idx]).all(axis=1) & (np.hypot(*implied.T) <= _SHADE_MAX_SHIFT * r))
+    at = idx[use]
+    shift[at] = implied[use]
+    var[at] = 0.5 * (cs[use, 0, 0] + cs[use, 1, 1])
+    gradient[at] = sol[use, 1:3]
+    gcov[at] = np.stack([cg[use, 0, 0], cg[use, 0, 1], cg[use, 1, 1]], axis=-1)
+    return shift, var, gradient, gcov, doubt
+
+
 def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: int, image_noise: float,
                 step: float = 0.0) -> Detection:
     """Steps 8-9 of :func:`detect_corners`: each corner's sigma is the larger of the fit's and
@@ -1009,7 +1146,9 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
         sigma, white, unit) and the light's (:func:`_shading_shift`)."""
         noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
                                                    image_noise)
-        return (noise, white, unit, *_shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px))
+        local = _shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px)
+        return (noise, white, unit, *_board_light(grey, det.corners, cols, rows, inverse, white, det.window_px, step,
+                                                  local))
 
     noise, white, unit, shift, shift_var, gradient, gcov, doubt = read_light(det, _SIGMA * factor)
     if factor > 1 and (doubt & (shift_var > _MAX_CORNER_SIGMA ** 2)).any():

@@ -562,22 +562,63 @@ def test_an_occluder_over_a_square_does_not_shift_its_corners():
 
     img, tc, board = _lit_board(0.0, blob=30)
     seen = {}
-    real = cb._shading_shift
+    real, real_board = cb._shading_shift, cb._board_light
 
     def spy(*args):
         out = real(*args)
         seen["shift"] = out[0]
         return out
 
+    def spy_board(*args):  # the same over the 6x6 squares around each corner
+        out = real_board(*args)
+        seen["board"] = out[0]
+        return out
+
     try:
-        cb._shading_shift = spy
+        cb._shading_shift, cb._board_light = spy, spy_board
         det = detect_corners(img, board)
     finally:
-        cb._shading_shift = real
+        cb._shading_shift, cb._board_light = real, real_board
     around = [30, 31, 39, 40]
     assert np.all(np.hypot(*seen["shift"][around].T) == 0.0), seen["shift"][around]
+    assert np.all(np.hypot(*seen["board"][around].T) == 0.0), seen["board"][around]
     err = np.hypot(*(det.corners - tc).T)
     assert np.nanmax(err) < 0.05, np.nanmax(err)
+
+
+def test_the_lights_slope_is_read_over_the_board_where_four_squares_cannot_read_it(monkeypatch):
+    # Issue 21 item 3: a vignetting's and an uneven light's slope (here up to 0.3 % of the
+    # contrast per pixel) moves a blurred corner's saddle point and its point of symmetry, and
+    # under noise the four squares around a corner (step 8) do not read it beyond its noise;
+    # the 6x6 squares around it do (``_board_light``). Measured on the demo board blurred by
+    # 2 px, a third of the range, noise 0.015, 6 draws: RMS error 0.067 -> 0.036 px, the
+    # corners' mean error over the draws (their bias) 0.052 -> 0.023 px RMS.
+    from scipy.ndimage import gaussian_filter
+
+    import camkit.target.checkerboard as cb
+
+    board, img, truth = _demo_view()
+    H, W = img.shape
+    y, x = np.mgrid[0:H, 0:W]
+    r2 = ((x - W / 2) ** 2 + (y - H / 2) ** 2) / ((W / 2) ** 2 + (H / 2) ** 2)
+    gain = (1 - 0.5 * r2) * (1 + 0.4 * (x / W - 0.5))
+    lit = (0.5 + 0.3 * (gaussian_filter(img, 2.0) - 0.5)) * gain
+    frames = [np.clip((lit + np.random.default_rng(seed).normal(0.0, 0.015, img.shape)) * 255 + 0.5, 0, 255
+                      ).astype(np.uint8) for seed in range(6)]
+
+    def errors() -> tuple[float, float]:
+        e = []
+        for frame in frames:
+            det = detect_corners(frame, board)
+            assert det.found and det.n_found == 54, det.message
+            e.append(det.corners - truth.corners_px)
+        e = np.stack(e)
+        return float(np.sqrt(np.mean((e ** 2).sum(axis=2)))), float(np.sqrt(np.mean((e.mean(axis=0) ** 2).sum(axis=1))))
+
+    rms, bias = errors()
+    monkeypatch.setattr(cb, "_board_light", lambda *args: args[-1])  # step 8's four squares alone
+    rms_local, bias_local = errors()
+    assert rms < 0.7 * rms_local and bias < 0.6 * bias_local, (rms, rms_local, bias, bias_local)
 
 
 def test_symmetric_sigma_counts_the_noise_in_the_gradients():
