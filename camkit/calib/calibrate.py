@@ -16,7 +16,7 @@ import numpy as np
 from camkit._validate import as_positive_float, as_positive_int, check_choice, check_same_size
 from camkit.calib.refine import LMOptions, solve
 from camkit.calib.result import CalibrationResult, assemble_result
-from camkit.calib.start import closed_form_start, linear_distortion_start
+from camkit.calib.start import centred_start, closed_form_start, linear_distortion_start
 from camkit.calib.views import ViewsProblem, as_views, reject_outliers
 from camkit.errors import EstimationError, ParameterError, ShapeError
 from camkit.lens.base import get_model
@@ -60,7 +60,8 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     for a fisheye, the equidistant projection ``r = f theta`` (J. Kannala and S. Brandt, IEEE
     TPAMI 28(8), 2006, sec. 3.2: its initialisation), f chosen as the one under which every
     view's corners lie on a plane; the model's linear distortion terms by least squares
-    (Zhang 2000, sec. 3.3). Then the sparse Levenberg-Marquardt
+    (Zhang 2000, sec. 3.3), fewer of them where all would fold a view's points back. Then the
+    sparse Levenberg-Marquardt
     (:func:`camkit.calib.refine.solve`) over the free model parameters and every pose
     (rotations updated multiplicatively), with the lens models' analytic Jacobians. The
     model's default held parameters (:func:`default_fix`), plus those named in ``fix``, less
@@ -68,7 +69,10 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     :func:`held_parameters`), keep their start value (0 for distortion). ``robust_loss``
     ("huber" or "cauchy", scale ``robust_scale_px``) reweights residuals; corners whose
     residual exceeds ``reject_sigma`` robust standard deviations are rejected with the reason
-    recorded, and the fit repeated once.
+    recorded, and the fit repeated once. Where the fit from Zhang's start cannot start or ends
+    with an RMS over a pixel (strong distortion bends the homographies, and the closed form
+    can put the principal point far off), it is tried again from the principal point at the
+    image's centre (:func:`~camkit.calib.start.centred_start`) and the lower cost kept.
 
     Parameters
     ----------
@@ -125,36 +129,72 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
                               "(10-50 degrees, about different axes)")
     if "skew" not in free_names:
         K[0, 1] = 0.0
-    cam = cls.initial_guess(K, width=w, height=h)
-    cam = linear_distortion_start(cam, [objs[i] for i in views], [imgs[i] for i in views], start_poses, free_names)
-    poses = list(start_poses)
-    mask = [np.isfinite(imgs[i]).all(axis=1) for i in views]
-    rejected: list[tuple[int, int, str]] = []
-    # With outlier rejection: a first fit to 1e-6 relative cost decrease is enough to tell the
-    # outliers; the final fit, without them, goes to 1e-10.
-    tolerances = (1e-6, 1e-10) if reject_sigma is not None else (1e-10,)
-    total_iterations = 0
-    for rnd, tol in enumerate(tolerances):
-        final = rnd == len(tolerances) - 1
-        problem = ViewsProblem(cls, w, h, [objs[i] for i in views], [imgs[i] for i in views], mask, free_idx)
-        n_params = len(free_idx) + 6 * len(views)
-        if n_params > 2 * len(problem.obj):
-            raise EstimationError(f"points: {len(problem.obj)} corners cannot determine {n_params} unknowns; use "
-                                  "more views or more corners per view")
-        report = solve(problem, problem.start(cam, poses),
-                       LMOptions(max_iterations=max_iterations, tolerance=tol, robust_loss=robust_loss,
-                                 robust_scale=scale, covariance=final))
-        total_iterations += report.iterations
-        # A fresh model: the solver's trial models know their valid region only as far as the data.
-        cam, poses = problem.model(report.state), report.state.poses()
-        if final:
-            break
-        rejected += reject_outliers(report.residuals, mask, views, reject_sigma)
+    vobjs, vimgs = [objs[i] for i in views], [imgs[i] for i in views]
+
+    def fit(K: np.ndarray, start_poses: list) -> tuple:
+        """(model, poses, report, iterations, rejected) of the fit from the start ``K``, ``start_poses``."""
+        cam = linear_distortion_start(cls.initial_guess(K, width=w, height=h), vobjs, vimgs, start_poses,
+                                      free_names)
+        poses = list(start_poses)
+        mask = [np.isfinite(imgs[i]).all(axis=1) for i in views]
+        rejected: list[tuple[int, int, str]] = []
+        # With outlier rejection: a first fit to 1e-6 relative cost decrease is enough to tell
+        # the outliers; the final fit, without them, goes to 1e-10.
+        tolerances = (1e-6, 1e-10) if reject_sigma is not None else (1e-10,)
+        total_iterations = 0
+        for rnd, tol in enumerate(tolerances):
+            final = rnd == len(tolerances) - 1
+            problem = ViewsProblem(cls, w, h, vobjs, vimgs, mask, free_idx)
+            n_params = len(free_idx) + 6 * len(views)
+            if n_params > 2 * len(problem.obj):
+                raise EstimationError(f"points: {len(problem.obj)} corners cannot determine {n_params} unknowns; "
+                                      "use more views or more corners per view")
+            report = solve(problem, problem.start(cam, poses),
+                           LMOptions(max_iterations=max_iterations, tolerance=tol, robust_loss=robust_loss,
+                                     robust_scale=scale, covariance=final))
+            total_iterations += report.iterations
+            # A fresh model: the solver's trial models know their valid region only as far as the data.
+            cam, poses = problem.model(report.state), report.state.poses()
+            if final:
+                break
+            rejected += reject_outliers(report.residuals, mask, views, reject_sigma)
+        return cam, poses, mask, report, total_iterations, rejected
+
+    try:
+        best = fit(K, start_poses)
+        failed = None
+    except EstimationError as e:
+        best, failed = None, e
+    # A fit that ends far from the corners (an RMS over _RETRY_RMS_PX) or cannot start is tried
+    # again from the principal point at the image's centre (centred_start), and the lower cost kept.
+    if cls.start_projection() == "perspective" and (best is None or _rms(best[3]) > _RETRY_RMS_PX):
+        try:
+            other = fit(*centred_start(vobjs, vimgs, w, h, "skew" not in free_names))
+        except EstimationError:
+            other = None
+        if other is not None and (best is None or other[3].cost < best[3].cost):
+            best = other
+    if best is None:
+        raise failed
+    cam, poses, mask, report, total_iterations, rejected = best
     all_poses: list = [None] * len(objs)
     for k, i in enumerate(views):
         all_poses[i] = poses[k]
     return assemble_result(cam, objs, imgs, all_poses, views, mask, report.global_names, report, total_iterations,
                            rejected, rejected_views)
+
+
+#: ``calibrate`` fits again from :func:`~camkit.calib.start.centred_start` where the fit from
+#: Zhang's start ends with an RMS over this (px) or cannot start: on the real plantcv_wide set
+#: (a 5.5 MP wide-angle lens, the board filling the frame) Zhang's start put the principal
+#: point 630 px from the centre, and the fit from it ended at 34 px RMS; from the centre, at
+#: 7.6 px (OpenCV's calibrateCamera: 13.0 px on its own corners).
+_RETRY_RMS_PX = 1.0
+
+
+def _rms(report) -> float:
+    r = report.residuals
+    return float(np.sqrt(np.sum(r * r) / max(len(r), 1)))
 
 
 def _collinear(xy: np.ndarray) -> bool:

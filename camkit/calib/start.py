@@ -15,7 +15,8 @@ from camkit.errors import EstimationError, ParameterError
 from camkit.geometry.pose import Pose
 from camkit.lens.base import CameraModel
 
-__all__ = ["STARTS", "closed_form_start", "equidistant_start", "linear_distortion_start", "perspective_start"]
+__all__ = ["STARTS", "centred_start", "closed_form_start", "equidistant_start", "linear_distortion_start",
+           "perspective_start"]
 
 
 def perspective_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, height: int,
@@ -30,6 +31,38 @@ def perspective_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int
     Hs = [H if H is not None else find_homography(objs[k][seen[k], :2], imgs[k][seen[k]], refine=False)
           for k, H in enumerate(Hs)]
     K = intrinsics_from_homographies(Hs, zero_skew=zero_skew)
+    return K, poses_from_homographies(K, Hs)
+
+
+def centred_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, height: int,
+                  zero_skew: bool = True) -> tuple[np.ndarray, list[Pose]]:
+    """K and poses with the principal point at the image's centre, ``((W - 1) / 2, (H - 1) / 2)``,
+    and square pixels: the focal length alone from the homographies' two constraints per view
+    (Zhang 2000, sec. 3.1, with ``B`` = diag(1, 1, f^2) after moving the principal point to the
+    origin: ``h1^T B h2 = 0`` and ``h1^T B h1 = h2^T B h2`` are each linear in 1 / f^2), by least
+    squares; OpenCV's ``initCameraMatrix2D`` starts the same way. Where strong distortion bends
+    the homographies, Zhang's full closed form can put the principal point far off, and this
+    start is the fallback :func:`~camkit.calib.calibrate` tries. ``zero_skew`` is accepted for
+    the signature of :data:`STARTS` (the skew here is always 0)."""
+    seen = [np.isfinite(p).all(axis=1) for p in imgs]
+    Hs = dlt_homographies([o[ok, :2] for o, ok in zip(objs, seen, strict=True)],
+                          [p[ok] for p, ok in zip(imgs, seen, strict=True)])
+    Hs = [H if H is not None else find_homography(objs[k][seen[k], :2], imgs[k][seen[k]], refine=False)
+          for k, H in enumerate(Hs)]
+    c = np.array([(width - 1) / 2, (height - 1) / 2])
+    T = np.array([[1.0, 0.0, -c[0]], [0.0, 1.0, -c[1]], [0.0, 0.0, 1.0]])
+    A = T @ np.asarray(Hs, dtype=np.float64)
+    A /= np.linalg.norm(A, axis=(1, 2))[:, None, None]
+    h1, h2 = A[:, :, 0], A[:, :, 1]
+    a = np.concatenate([h1[:, 0] * h2[:, 0] + h1[:, 1] * h2[:, 1],
+                        h1[:, 0] ** 2 + h1[:, 1] ** 2 - h2[:, 0] ** 2 - h2[:, 1] ** 2])
+    b = -np.concatenate([h1[:, 2] * h2[:, 2], h1[:, 2] ** 2 - h2[:, 2] ** 2])
+    u = float(a @ b) / max(float(a @ a), 1e-300)  # 1 / f^2
+    if not u > 0:
+        raise EstimationError("start: no focal length with the principal point at the image's centre explains the "
+                              "views; tilt the board differently between photos")
+    f = 1.0 / np.sqrt(u)
+    K = np.array([[f, 0.0, c[0]], [0.0, f, c[1]], [0.0, 0.0, 1.0]])
     return K, poses_from_homographies(K, Hs)
 
 
@@ -107,7 +140,12 @@ def linear_distortion_start(cam: CameraModel, objs: list[np.ndarray], imgs: list
     """The model's ``linear_start_terms`` (radial terms multiplying the ideal offset by r^2,
     r^4, ...) by linear least squares from the pinhole start (Zhang 2000, eq. 13), where all of
     them are free; else the model unchanged. A start outside the model's valid parameters
-    keeps the model unchanged too."""
+    keeps the model unchanged too, and so does one under which a view's points fold back
+    (outside the model's valid region: the solver cannot start there): the terms are then
+    fitted again without the highest (k1 alone), and where that folds back too, the model is
+    kept as it came (real plantcv_wide set, a 5.5 MP wide-angle lens whose board fills the frame:
+    Zhang's start gave k1 0.97, k2 -11.6, folding back inside the board's farthest corner,
+    and calibration stopped at the start)."""
     terms = cam.linear_start_terms
     if not terms or not set(terms) <= free_names:
         return cam
@@ -118,11 +156,15 @@ def linear_distortion_start(cam: CameraModel, objs: list[np.ndarray], imgs: list
     x, y = X[:, 0] / X[:, 2], X[:, 1] / X[:, 2]
     r2 = x * x + y * y
     du, dv = cam.fx * x, cam.fy * y  # ideal pixel minus the principal point
-    powers = [r2 ** (k + 1) for k in range(len(terms))]
-    rows = [np.stack([du * q for q in powers], -1), np.stack([dv * q for q in powers], -1)]
-    rhs = [p[:, 0] - cam.cx - du, p[:, 1] - cam.cy - dv]
-    k = np.linalg.lstsq(np.concatenate(rows), np.concatenate(rhs), rcond=None)[0]
-    try:
-        return cam.replace(**{t: float(v) for t, v in zip(terms, k, strict=True)})
-    except ParameterError:
-        return cam
+    rhs = np.concatenate([p[:, 0] - cam.cx - du, p[:, 1] - cam.cy - dv])
+    for n in range(len(terms), 0, -1):
+        powers = [r2 ** (k + 1) for k in range(n)]
+        rows = [np.stack([du * q for q in powers], -1), np.stack([dv * q for q in powers], -1)]
+        k = np.linalg.lstsq(np.concatenate(rows), rhs, rcond=None)[0]
+        try:
+            out = cam.replace(**{t: float(v) for t, v in zip(terms[:n], k, strict=True)})
+        except ParameterError:
+            continue
+        if np.isfinite(out.project(X)).all():
+            return out
+    return cam
