@@ -667,25 +667,34 @@ _MAX_CORNER_SIGMA = 0.25
 _MIN_NOISE_SQUARES = 4
 
 
-def _square_middles(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
-    """The middle of every square with its four corners known, the board's outer squares
-    included (their outer corners continued one step from the two lines inside), and the
-    distance from each middle to the nearest of its square's sides. Returns ((M, 2), (M,))."""
+def _square_grid(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Every square of the board, (rows + 1) x (cols + 1), the outer ones included (their outer
+    corners continued one step from the two lines inside): its middle and the distance from
+    the middle to the nearest of its sides, NaN where one of its corners is unknown. Returns
+    ((rows + 1, cols + 1, 2), (rows + 1, cols + 1))."""
     G = np.full((rows + 2, cols + 2, 2), np.nan)
     G[1:-1, 1:-1] = corners.reshape(rows, cols, 2)
     G[0, 1:-1] = 2 * G[1, 1:-1] - G[2, 1:-1]
     G[-1, 1:-1] = 2 * G[-2, 1:-1] - G[-3, 1:-1]
     G[:, 0] = 2 * G[:, 1] - G[:, 2]
     G[:, -1] = 2 * G[:, -2] - G[:, -3]
-    ring = np.stack([G[:-1, :-1], G[:-1, 1:], G[1:, 1:], G[1:, :-1]], axis=2).reshape(-1, 4, 2)
-    ring = ring[np.isfinite(ring).all(axis=(1, 2))]
-    mid = ring.mean(axis=1)
-    a, b = ring, np.roll(ring, -1, axis=1)
-    e = b - a
-    w = mid[:, None] - a
+    ring = np.stack([G[:-1, :-1], G[:-1, 1:], G[1:, 1:], G[1:, :-1]], axis=2)  # (rows + 1, cols + 1, 4, 2)
+    mid = ring.mean(axis=2)
+    e = np.roll(ring, -1, axis=2) - ring
+    w = mid[:, :, None] - ring
     with np.errstate(divide="ignore", invalid="ignore"):
         dist = np.abs(e[..., 0] * w[..., 1] - e[..., 1] * w[..., 0]) / np.hypot(e[..., 0], e[..., 1])
-    return mid, np.nan_to_num(dist, nan=0.0).min(axis=1) if len(mid) else np.zeros(0)
+    clear = np.nan_to_num(dist, nan=0.0).min(axis=2)
+    clear[~np.isfinite(mid).all(axis=2)] = np.nan
+    return mid, clear
+
+
+def _square_middles(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray, np.ndarray]:
+    """The middle of every square with its four corners known (:func:`_square_grid`) and the
+    distance from each middle to the nearest of its square's sides. Returns ((M, 2), (M,))."""
+    mid, clear = _square_grid(corners, cols, rows)
+    known = np.isfinite(mid).all(axis=2)
+    return mid[known], clear[known]
 
 
 @functools.lru_cache(maxsize=64)
@@ -1026,7 +1035,7 @@ def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, in
     stress view 1496 a drawing of the exact pattern with the fitted slope reproduced a
     corner's 0.07 px offset to 0.001 px; benchmarks/notes.md, thirty-ninth session). Light is
     smooth over far more than a square. Here every square of the board with its four corners
-    known (the outer ones' outer corners continued a step, as :func:`_square_middles`) gives
+    known (the outer ones' outer corners continued a step: :func:`_square_grid`) gives
     one shade: the mean over a box about its middle reaching ``_LIGHT_BOX`` of the way to its
     nearest side, its variance the larger of the white noise ``white``, the box's own spread
     and a quantisation's (``step`` squared over 12) over its pixels; boxes outside the image
@@ -1046,19 +1055,7 @@ def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, in
     n = len(corners)
     if n < 4 or not np.isfinite(corners).any():
         return shift, var, gradient, gcov, doubt
-    G = np.full((rows + 2, cols + 2, 2), np.nan)
-    G[1:-1, 1:-1] = corners.reshape(rows, cols, 2)
-    G[0, 1:-1] = 2 * G[1, 1:-1] - G[2, 1:-1]
-    G[-1, 1:-1] = 2 * G[-2, 1:-1] - G[-3, 1:-1]
-    G[:, 0] = 2 * G[:, 1] - G[:, 2]
-    G[:, -1] = 2 * G[:, -2] - G[:, -3]
-    ring = np.stack([G[:-1, :-1], G[:-1, 1:], G[1:, 1:], G[1:, :-1]], axis=2)  # (rows + 1, cols + 1, 4, 2)
-    mid = ring.mean(axis=2)
-    e = np.roll(ring, -1, axis=2) - ring
-    to_mid = mid[:, :, None] - ring
-    with np.errstate(divide="ignore", invalid="ignore"):
-        clear = (np.abs(e[..., 0] * to_mid[..., 1] - e[..., 1] * to_mid[..., 0]) / np.hypot(*np.moveaxis(e, -1, 0))
-                 ).min(axis=2)
+    mid, clear = _square_grid(corners, cols, rows)
     h, w = grey.shape[:2]
     known = np.isfinite(mid).all(axis=2) & np.isfinite(clear)
     half = np.where(known, np.round(_LIGHT_BOX * np.where(known, clear, 0.0)), 0).astype(np.int64)
