@@ -132,7 +132,8 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     vobjs, vimgs = [objs[i] for i in views], [imgs[i] for i in views]
 
     def fit(K: np.ndarray, start_poses: list) -> tuple:
-        """(model, poses, report, iterations, rejected) of the fit from the start ``K``, ``start_poses``."""
+        """(model, poses, masks, report, iterations, rejected) of the fit from the start ``K``,
+        ``start_poses``."""
         cam = linear_distortion_start(cls.initial_guess(K, width=w, height=h), vobjs, vimgs, start_poses,
                                       free_names)
         poses = list(start_poses)
@@ -166,13 +167,14 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     except EstimationError as e:
         best, failed = None, e
     # A fit that ends far from the corners (an RMS over _RETRY_RMS_PX) or cannot start is tried
-    # again from the principal point at the image's centre (centred_start), and the lower cost kept.
-    if cls.start_projection() == "perspective" and (best is None or _rms(best[3]) > _RETRY_RMS_PX):
+    # again from the principal point at the image's centre (centred_start), and the lower RMS
+    # kept (the two may reject different corners as outliers).
+    if cls.start_projection() == "perspective" and (best is None or not _rms(best[3]) <= _RETRY_RMS_PX):
         try:
             other = fit(*centred_start(vobjs, vimgs, w, h, "skew" not in free_names))
         except EstimationError:
             other = None
-        if other is not None and (best is None or other[3].cost < best[3].cost):
+        if other is not None and (best is None or _rms(other[3]) < _rms(best[3])):
             best = other
     if best is None:
         raise failed
@@ -193,8 +195,11 @@ _RETRY_RMS_PX = 1.0
 
 
 def _rms(report) -> float:
-    r = report.residuals
-    return float(np.sqrt(np.sum(r * r) / max(len(r), 1)))
+    """The RMS (px, OpenCV's: over corners) of a fit's residuals ``(N, 2)``, over the corners it
+    could project; infinite where it projects none."""
+    r = np.asarray(report.residuals, dtype=np.float64)
+    ok = np.isfinite(r).all(axis=1)
+    return float(np.sqrt(np.sum(r[ok] ** 2) / ok.sum())) if ok.any() else float("inf")
 
 
 def _collinear(xy: np.ndarray) -> bool:
