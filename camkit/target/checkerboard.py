@@ -1005,9 +1005,10 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
 
 #: Step 8's light over the board: each corner's gradient of the light is read from the squares
 #: within this many squares of it each way (a plane over a 6x6 block of them). On the stress
-#: corpus's seeds 0-1999, 95th percentile with noise 0.1041 px with step 8's four squares alone,
-#: 0.0986 / 0.0978 / 0.0973 / 0.0976 px over blocks of 4x4 / 6x6 / 8x8 / 12x12 squares, and
-#: 0.1005 px with a quadratic over 6x6 (benchmarks/notes.md, fortieth session).
+#: corpus's seeds 0-1999, 95th percentile with noise 0.1041 px with step 8's four squares alone;
+#: with the block's slope given to step 9, 0.0992 / 0.0978 / 0.0973 / 0.0976 px over blocks of
+#: 4x4 / 6x6 / 8x8 / 12x12 squares and 0.1005 px with a quadratic over 6x6; 0.0971 px with the
+#: saddle point shifted by it too (benchmarks/notes.md, fortieth session).
 _LIGHT_SQUARES = 3
 #: ... each square's shade the mean over a box about its middle reaching this fraction of the
 #: way to its nearest side (half-diagonal 0.5: clear of its edges' blur).
