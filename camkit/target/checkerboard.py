@@ -834,8 +834,18 @@ _CLIP_PLATEAU = 16
 _CLIP_PLATEAU_FRACTION = 1e-4
 
 
+def _clip_ceiling(img: np.ndarray) -> float:
+    """The image's ceiling where it is clipped (a plateau of ``_CLIP_PLATEAU`` pixels, and
+    ``_CLIP_PLATEAU_FRACTION`` of them, at its maximum), else ``inf``."""
+    ceiling = float(img.max())
+    if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
+        return np.inf
+    return ceiling
+
+
 def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, inverse: np.ndarray,
-                   white: float, r: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+                   white: float, r: int, ceiling: float | None = None
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Step 8 of :func:`detect_corners`: how far a gradient of the light moves each saddle point,
     the variance (px^2, per axis) that reading adds to the corner's (zero and NaN where the
     light's gradient is not read beyond its noise), the gradient (shade per px, (N, 2)) and its
@@ -869,7 +879,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
     square's places hold pixels at the ceiling, the gradient is read along each diagonal from
     its own squares (the light one's a lower bound), and where it is beyond its noise the
     corner is in doubt, its variance twice the square of the shift it implies (where a dark
-    square's places hold such pixels too, the plane's reading stands)."""
+    square's places hold such pixels too, the plane's reading stands). ``ceiling``: the image's
+    :func:`_clip_ceiling`, where the caller has read it (else it is read here)."""
     n = len(corners)
     shift = np.zeros((n, 2))
     var = np.full(n, np.nan)
@@ -922,9 +933,8 @@ def _shading_shift(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, 
         return nothing
     idx, M, MtM, b, cx, cy = idx[ok], M[ok], MtM[ok], b[ok], cx[ok], cy[ok]
     img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
-    ceiling = float(img.max())
-    if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
-        ceiling = np.inf
+    if ceiling is None:
+        ceiling = _clip_ceiling(img)
     shade, spread, clip = np.empty(cx.shape), np.empty(cx.shape), np.empty(cx.shape)
     detect_kernels.box_means(img, cx.ravel(), cy.ravel(), b.ravel(), ceiling, shade.ravel(),
                              spread.ravel(), clip.ravel())
@@ -1023,7 +1033,8 @@ _LIGHT_MISFIT = 0.05
 
 
 def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, inverse: np.ndarray, white: float,
-                 r: int, step: float, local: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+                 r: int, step: float, local: tuple[np.ndarray, ...], ceiling: float | None = None
+                 ) -> tuple[np.ndarray, ...]:
     """Step 8 again over more of the board: each corner's gradient of the light read from the
     squares around it, in place of :func:`_shading_shift`'s (``local``, the same five arrays)
     wherever it can be read. Returns the five arrays of :func:`_shading_shift`.
@@ -1051,7 +1062,7 @@ def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, in
     by that, with its variance, and the gradient goes to step 9. The gradient is read to a
     tenth or less of the four squares' noise, so it is used as read, without a chi-square's
     bar. Corners the local reading leaves in doubt (a clipped glare, light that bends within a
-    square) stay as it left them."""
+    square) stay as it left them. ``ceiling``: as for :func:`_shading_shift`."""
     shift, var, gradient, gcov, doubt = (a.copy() for a in local)
     n = len(corners)
     if n < 4 or not np.isfinite(corners).any():
@@ -1067,9 +1078,8 @@ def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, in
     if len(at) < 7:
         return shift, var, gradient, gcov, doubt
     img = np.ascontiguousarray(grey.dense() if isinstance(grey, RawGrey) else grey, dtype=np.float64)
-    ceiling = float(img.max())
-    if np.count_nonzero(img >= ceiling) < max(_CLIP_PLATEAU, _CLIP_PLATEAU_FRACTION * img.size):
-        ceiling = np.inf
+    if ceiling is None:
+        ceiling = _clip_ceiling(img)
     mean, spread, clip = np.empty(len(at)), np.empty(len(at)), np.empty(len(at))
     detect_kernels.box_means(img, cx.ravel()[at], cy.ravel()[at], half.ravel()[at], ceiling, mean, spread, clip)
     shade = np.full(box.size, np.nan)
@@ -1141,15 +1151,16 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
     leaves a corner of such a board in doubt by more than ``_MAX_CORNER_SIGMA``, the board is
     fitted again finer (:func:`_finer`) and read again."""
     cols, rows = board.inner_cols, board.inner_rows
+    ceiling = _clip_ceiling(grey.dense() if isinstance(grey, RawGrey) else grey)  # read once, for every reading
 
     def read_light(det: Detection, smoothing: float) -> tuple[np.ndarray, ...]:
         """Step 8's readings of ``det`` fitted at ``smoothing``: the noise's (:func:`_noise_sigma`:
-        sigma, white, unit) and the light's (:func:`_shading_shift`)."""
+        sigma, white, unit) and the light's (:func:`_shading_shift`, :func:`_board_light`)."""
         noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
                                                    image_noise)
-        local = _shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px)
+        local = _shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px, ceiling)
         return (noise, white, unit, *_board_light(grey, det.corners, cols, rows, inverse, white, det.window_px, step,
-                                                  local))
+                                                  local, ceiling))
 
     noise, white, unit, shift, shift_var, gradient, gcov, doubt = read_light(det, _SIGMA * factor)
     if factor > 1 and (doubt & (shift_var > _MAX_CORNER_SIGMA ** 2)).any():
