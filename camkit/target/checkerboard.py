@@ -1158,9 +1158,9 @@ def _drop_noisy(grey: np.ndarray, det: Detection, board: Checkerboard, factor: i
         sigma, white, unit) and the light's (:func:`_shading_shift`, :func:`_board_light`)."""
         noise, white, unit, inverse = _noise_sigma(grey, det.corners, cols, rows, det.window_px, smoothing,
                                                    image_noise)
-        local = _shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px, ceiling)
+        local = _shading_shift(grey, det.corners, cols, rows, inverse, white, det.window_px, ceiling=ceiling)
         return (noise, white, unit, *_board_light(grey, det.corners, cols, rows, inverse, white, det.window_px, step,
-                                                  local, ceiling))
+                                                  local, ceiling=ceiling))
 
     noise, white, unit, shift, shift_var, gradient, gcov, doubt = read_light(det, _SIGMA * factor)
     if factor > 1 and (doubt & (shift_var > _MAX_CORNER_SIGMA ** 2)).any():

@@ -254,7 +254,7 @@ def test_a_corner_an_occluder_touches_is_not_taken_from_a_coarser_level(monkeypa
     monkeypatch.setattr(cb, "_ASYMMETRY_FLOOR", 10.0)  # the full-resolution test off
     # ... and step 8's reading of the light, which doubts the corner too (the finger over its
     # squares is no plane of light).
-    monkeypatch.setattr(cb, "_shading_shift", lambda grey, corners, *rest: (
+    monkeypatch.setattr(cb, "_shading_shift", lambda grey, corners, *rest, **kw: (
         np.zeros((len(corners), 2)), np.full(len(corners), np.nan), np.zeros((len(corners), 2)),
         np.zeros((len(corners), 3)), np.zeros(len(corners), dtype=bool)))
     det = detect_corners(photo, board)
@@ -564,13 +564,13 @@ def test_an_occluder_over_a_square_does_not_shift_its_corners():
     seen = {}
     real, real_board = cb._shading_shift, cb._board_light
 
-    def spy(*args):
-        out = real(*args)
+    def spy(*args, **kw):
+        out = real(*args, **kw)
         seen["shift"] = out[0]
         return out
 
-    def spy_board(*args):  # the same over the 6x6 squares around each corner
-        out = real_board(*args)
+    def spy_board(*args, **kw):  # the same over the 6x6 squares around each corner
+        out = real_board(*args, **kw)
         seen["board"] = out[0]
         return out
 
@@ -616,7 +616,7 @@ def test_the_lights_slope_is_read_over_the_board_where_four_squares_cannot_read_
         return float(np.sqrt(np.mean((e ** 2).sum(axis=2)))), float(np.sqrt(np.mean((e.mean(axis=0) ** 2).sum(axis=1))))
 
     rms, bias = errors()
-    monkeypatch.setattr(cb, "_board_light", lambda *args: args[-1])  # step 8's four squares alone
+    monkeypatch.setattr(cb, "_board_light", lambda *args, **kw: args[-1])  # step 8's four squares alone
     rms_local, bias_local = errors()
     assert rms < 0.7 * rms_local and bias < 0.6 * bias_local, (rms, rms_local, bias, bias_local)
 
