@@ -8,8 +8,10 @@ from collections.abc import Callable
 
 import numpy as np
 
+from camkit._validate import as_positive_int
 from camkit.calib.homography import dlt_homographies, find_homography
 from camkit.calib.result import stacked_points
+from camkit.calib.views import as_views
 from camkit.calib.zhang import intrinsics_from_homographies, poses_from_homographies
 from camkit.errors import EstimationError, ParameterError
 from camkit.geometry.pose import Pose
@@ -43,7 +45,13 @@ def centred_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, he
     squares; OpenCV's ``initCameraMatrix2D`` starts the same way. Where strong distortion bends
     the homographies, Zhang's full closed form can put the principal point far off, and this
     start is the fallback :func:`~camkit.calib.calibrate` tries. ``zero_skew`` is accepted for
-    the signature of :data:`STARTS` (the skew here is always 0)."""
+    the signature of :data:`STARTS` (the skew here is always 0). The views are checked as
+    :func:`~camkit.calib.calibrate` checks them (:func:`~camkit.calib.views.as_views`)."""
+    objs, imgs = as_views(objs, imgs)
+    width, height = as_positive_int(width, "width"), as_positive_int(height, "height")
+    if not objs:
+        raise EstimationError("object_points, image_points: the centred start needs at least one view of the "
+                              "board, got none")
     seen = [np.isfinite(p).all(axis=1) for p in imgs]
     Hs = dlt_homographies([o[ok, :2] for o, ok in zip(objs, seen, strict=True)],
                           [p[ok] for p, ok in zip(imgs, seen, strict=True)])
@@ -57,7 +65,12 @@ def centred_start(objs: list[np.ndarray], imgs: list[np.ndarray], width: int, he
     a = np.concatenate([h1[:, 0] * h2[:, 0] + h1[:, 1] * h2[:, 1],
                         h1[:, 0] ** 2 + h1[:, 1] ** 2 - h2[:, 0] ** 2 - h2[:, 1] ** 2])
     b = -np.concatenate([h1[:, 2] * h2[:, 2], h1[:, 2] ** 2 - h2[:, 2] ** 2])
-    u = float(a @ b) / max(float(a @ a), 1e-300)  # 1 / f^2
+    # A board square to the optical axis gives h1, h2 without a z part: both constraints vanish
+    # (the homographies are scaled to unit norm, so a^T a is on the scale of 1 where views tilt).
+    if not float(a @ a) > 1e-12:
+        raise EstimationError("views: every board faces the camera squarely, which leaves the focal length "
+                              "undetermined; tilt the board differently between photos (10-50 degrees)")
+    u = float(a @ b) / float(a @ a)  # 1 / f^2
     if not u > 0:
         raise EstimationError("start: no focal length with the principal point at the image's centre explains the "
                               "views; tilt the board differently between photos")

@@ -326,3 +326,28 @@ def test_the_centred_start_recovers_the_focal_length_of_a_centred_camera():
     assert K[0, 0] == pytest.approx(900.0, rel=1e-6) and K[1, 1] == K[0, 0]
     assert (K[0, 2], K[1, 2]) == (639.5, 479.5) and K[0, 1] == 0.0
     assert start[2].allclose(poses[2], atol=1e-6)
+
+
+def test_the_centred_start_names_bad_views():
+    from camkit.calib.start import centred_start
+    from camkit.lens import Pinhole
+
+    cam = Pinhole(fx=900.0, fy=900.0, cx=639.5, cy=479.5, width=1280, height=960)
+    square_on = cam.project(OBJ + [0.0, 0.0, 0.5])  # the board parallel to the image
+    with pytest.raises(EstimationError, match="at least one view"):
+        centred_start([], [], 1280, 960)
+    with pytest.raises(ShapeError, match="one array per view"):
+        centred_start([OBJ], [], 1280, 960)
+    with pytest.raises(ShapeError, match=r"image_points\[0\]"):
+        centred_start([OBJ], [square_on[:, :1]], 1280, 960)
+    with pytest.raises(ParameterError, match="width"):
+        centred_start([OBJ], [square_on], 0, 960)
+    with pytest.raises(EstimationError, match="at least 4"):
+        centred_start([OBJ[:3]], [square_on[:3]], 1280, 960)
+    with pytest.raises(EstimationError, match="faces the camera squarely"):
+        centred_start([OBJ], [square_on], 1280, 960)
+    # NaN rows (corners not seen) are left out, as calibrate leaves them out
+    poses = plan_views(cam, BOARD, 4, np.random.default_rng(3))
+    imgs = [cam.project(p.apply(OBJ)) for p in poses]
+    imgs[1][:10] = np.nan
+    assert centred_start([OBJ] * 4, imgs, 1280, 960)[0][0, 0] == pytest.approx(900.0, rel=1e-6)
