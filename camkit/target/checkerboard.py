@@ -1093,11 +1093,10 @@ def _board_light(grey: np.ndarray, corners: np.ndarray, cols: int, rows: int, in
     # (rows + 1) x (cols + 1) squares; its block reaches _LIGHT_SQUARES of them each way.
     k = np.arange(-_LIGHT_SQUARES + 1, _LIGHT_SQUARES + 1)
     ci, cj = np.divmod(np.arange(n), cols)
-    qi = np.clip((ci[:, None, None] + k[None, :, None]) * np.ones((1, 1, len(k)), dtype=np.int64), 0, rows)
-    qj = np.clip((cj[:, None, None] + k[None, None, :]) * np.ones((1, len(k), 1), dtype=np.int64), 0, cols)
-    inb = ((ci[:, None, None] + k[None, :, None] >= 0) & (ci[:, None, None] + k[None, :, None] <= rows)
-           & (cj[:, None, None] + k[None, None, :] >= 0) & (cj[:, None, None] + k[None, None, :] <= cols))
-    qi, qj, inb = qi.reshape(n, -1), qj.reshape(n, -1), inb.reshape(n, -1)
+    ri, rj = ci[:, None] + k, cj[:, None] + k  # the block's square rows and columns, (N, 2 _LIGHT_SQUARES)
+    inb = (((ri >= 0) & (ri <= rows))[:, :, None] & ((rj >= 0) & (rj <= cols))[:, None, :]).reshape(n, -1)
+    qi = np.repeat(np.clip(ri, 0, rows), len(k), axis=1)
+    qj = np.tile(np.clip(rj, 0, cols), (1, len(k)))
     s, v, col = shade[qi, qj], shade_var[qi, qj], parity[qi, qj]
     d = mid[qi, qj] - corners[:, None]
     have = inb & np.isfinite(s) & np.isfinite(d).all(axis=2) & np.isfinite(corners).all(axis=1)[:, None]
