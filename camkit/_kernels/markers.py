@@ -10,6 +10,17 @@ from numba import njit, prange
 from camkit._kernels.calib import dlt_normal
 from camkit._kernels.lattice import bilinear
 
+#: :func:`refine_quads`: a side's edge found farther than this from the line through all of them
+#: (pixels, or cells where that is more) is left out of the line fitted again...
+_EDGE_OFF_LINE_PX = 1.5
+_EDGE_OFF_LINE_CELLS = 0.3
+#: ... where at most this many of the side's eleven places are off it (more are not strays but a
+#: side too thin to tell its edges apart: corpus view 383, markers seen edge on as slivers), and
+#: where that distance is within half the search's reach (0.8 of a cell), so that a stray can be
+#: told from blur and noise (cells of 3.75 px or more; on cells of 1.3-2.4 px the refit dropped
+#: places the noise had moved and lost markers: ChArUco corpus view 1453, AprilGrid view 110).
+_EDGE_OFF_LINE_MOST = 3
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
@@ -428,21 +439,73 @@ def unique_quads(quads: np.ndarray, centre: np.ndarray, span: np.ndarray, order:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _weighted_line(ex: np.ndarray, ey: np.ndarray, w: np.ndarray) -> tuple[float, float, float]:  # pragma: no cover
+    """The line through the points (``ex``, ``ey``) weighted by ``w`` (total least squares): its
+    weighted mean and its direction's angle; NaN where the weights sum to nothing."""
+    ws = 0.0
+    mx = 0.0
+    my = 0.0
+    for i in range(len(w)):
+        ws += w[i]
+        mx += w[i] * ex[i]
+        my += w[i] * ey[i]
+    if not ws > 0:
+        return np.nan, np.nan, np.nan
+    mx /= ws
+    my /= ws
+    cxx = 0.0
+    cyy = 0.0
+    cxy = 0.0
+    for i in range(len(w)):
+        rx, ry = ex[i] - mx, ey[i] - my
+        cxx += w[i] * rx * rx
+        cyy += w[i] * ry * ry
+        cxy += w[i] * rx * ry
+    return mx, my, 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lines_meet(mid: np.ndarray, dirn: np.ndarray, quad: np.ndarray, cell: float,
+                new: np.ndarray) -> bool:  # pragma: no cover - numba
+    """``new`` (4, 2): where the lines through ``mid`` along ``dirn`` (4, 2 each: a quad's sides)
+    meet, corner j where side j - 1 meets side j; False where two are parallel or a corner lies
+    more than ``cell`` from ``quad``'s."""
+    for j in range(4):
+        i = (j + 3) % 4
+        cross = dirn[i, 0] * dirn[j, 1] - dirn[i, 1] * dirn[j, 0]
+        if abs(cross) <= 1e-6:
+            return False
+        s1 = ((mid[j, 0] - mid[i, 0]) * dirn[j, 1] - (mid[j, 1] - mid[i, 1]) * dirn[j, 0]) / cross
+        new[j, 0] = mid[i, 0] + s1 * dirn[i, 0]
+        new[j, 1] = mid[i, 1] + s1 * dirn[i, 1]
+        if not (np.hypot(new[j, 0] - quad[j, 0], new[j, 1] - quad[j, 1]) <= cell):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def refine_quads(img: np.ndarray, quads: np.ndarray, n_cells: int, iters: int,
                  out: np.ndarray) -> None:  # pragma: no cover - numba
     """``out`` (K, 4, 2): each quad of ``quads`` (K, 4, 2) with its corners where the lines of
     its sides' edges meet (see :func:`camkit.target._markers.refine_quads`): each side's edge at
     eleven places 0.2-0.8 along it, the strongest dark-to-light rise outward within 0.8 of a
     cell (a cell: the mean side over ``n_cells``), to a tenth of a pixel by a parabola; a line
-    through them weighted by the rise; corners where adjacent lines meet. ``iters`` rounds;
-    a round whose corners are not all found within a cell of the quad's is not taken."""
+    through them weighted by the rise, fitted again without the places farther from it than
+    :data:`_EDGE_OFF_LINE_PX` (or :data:`_EDGE_OFF_LINE_CELLS` of a cell) where at most
+    :data:`_EDGE_OFF_LINE_MOST` are and cells are 3.75 px or more; corners where adjacent lines
+    meet (the lines fitted again, else the first: :func:`_lines_meet`). ``iters`` rounds; a
+    round whose corners are not all found within a cell of the quad's either way is not
+    taken."""
     n_t, n_o = 11, 17
     vals = np.empty(n_o)
     ex = np.empty(n_t)
     ey = np.empty(n_t)
     w = np.empty(n_t)
+    w2 = np.empty(n_t)
     mid = np.empty((4, 2))
     dirn = np.empty((4, 2))
+    mid2 = np.empty((4, 2))
+    dirn2 = np.empty((4, 2))
     new = np.empty((4, 2))
     for k in range(quads.shape[0]):
         cell = 0.0
@@ -490,44 +553,39 @@ def refine_quads(img: np.ndarray, quads: np.ndarray, n_cells: int, iters: int,
                     w[ti] = max(g0, 0.0)
                     if w[ti] > 0:
                         n_pos += 1
-                ws = 0.0
-                mx = 0.0
-                my = 0.0
-                for ti in range(n_t):
-                    ws += w[ti]
-                    mx += w[ti] * ex[ti]
-                    my += w[ti] * ey[ti]
-                if n_pos < 5 or not ws > 0:
+                if n_pos < 5:
                     good = False
                     break
-                mx /= ws
-                my /= ws
-                cxx = 0.0
-                cyy = 0.0
-                cxy = 0.0
-                for ti in range(n_t):
-                    rx, ry = ex[ti] - mx, ey[ti] - my
-                    cxx += w[ti] * rx * rx
-                    cyy += w[ti] * ry * ry
-                    cxy += w[ti] * rx * ry
-                ang = 0.5 * np.arctan2(2.0 * cxy, cxx - cyy)
+                mx, my, ang = _weighted_line(ex, ey, w)
+                if not np.isfinite(ang):
+                    good = False
+                    break
                 mid[j, 0], mid[j, 1] = mx, my
                 dirn[j, 0], dirn[j, 1] = np.cos(ang), np.sin(ang)
+                # Once again without the places off the line: near an obtuse corner of a quad seen
+                # at a slant, the search across a side can reach the next side's edge (corpus
+                # view 1301's marker 0: one place 8.8 px off tilted the line and put two
+                # corners 3-5 px off).
+                tol = max(_EDGE_OFF_LINE_PX, _EDGE_OFF_LINE_CELLS * cell)
+                n2 = 0
+                for ti in range(n_t):
+                    off_line = abs((ex[ti] - mx) * dirn[j, 1] - (ey[ti] - my) * dirn[j, 0])
+                    w2[ti] = w[ti] if off_line <= tol else 0.0
+                    if w2[ti] > 0:
+                        n2 += 1
+                mid2[j, 0], mid2[j, 1] = mx, my
+                dirn2[j, 0], dirn2[j, 1] = dirn[j, 0], dirn[j, 1]
+                if n2 >= max(5, n_pos - _EDGE_OFF_LINE_MOST) and n2 < n_pos and tol <= 0.4 * cell:
+                    mx, my, ang = _weighted_line(ex, ey, w2)
+                    mid2[j, 0], mid2[j, 1] = mx, my
+                    dirn2[j, 0], dirn2[j, 1] = np.cos(ang), np.sin(ang)
             if not good:
                 break
-            for j in range(4):  # corner j: where side j - 1's line meets side j's
-                i = (j + 3) % 4
-                cross = dirn[i, 0] * dirn[j, 1] - dirn[i, 1] * dirn[j, 0]
-                if abs(cross) <= 1e-6:
-                    good = False
-                    break
-                s1 = ((mid[j, 0] - mid[i, 0]) * dirn[j, 1] - (mid[j, 1] - mid[i, 1]) * dirn[j, 0]) / cross
-                new[j, 0] = mid[i, 0] + s1 * dirn[i, 0]
-                new[j, 1] = mid[i, 1] + s1 * dirn[i, 1]
-                if not (np.hypot(new[j, 0] - quads[k, j, 0], new[j, 1] - quads[k, j, 1]) <= cell):
-                    good = False
-                    break
-            if not good:
+            # The corners from the lines fitted again; where one of them lies more than a cell
+            # from the quad's, from the first lines (a quad whose corners lie near a cell off
+            # moves further towards its marker's than its first lines took it, and the round is
+            # not taken: AprilGrid corpus view 1550's tags 5 and 7, 2-6 px off, cells of 4-5 px).
+            if not _lines_meet(mid2, dirn2, quads[k], cell, new) and not _lines_meet(mid, dirn, quads[k], cell, new):
                 break
             for j in range(4):
                 out[k, j, 0] = new[j, 0]

@@ -475,7 +475,10 @@ def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int =
     rise from dark to light within 0.8 of a cell either side (the next edges out and in, a
     black square beyond the margin and the code's bits, fall), to a tenth of a pixel by a
     parabola through the peak; a line is fitted through them (least squares, weighted by the
-    rise), and the corners are where adjacent lines meet (kernel
+    rise), and again without those over 1.5 px (or 0.3 of a cell) off it where they are three
+    at most and cells 3.75 px or more: near an obtuse corner seen at a slant the search can
+    reach the next side's edge. The corners are where the lines fitted again meet, or where
+    those put a corner over a cell from the quad's, where the first lines meet (kernel
     :func:`camkit._kernels.markers.refine_quads`). Run ``iters`` times; a round in which a
     corner would lie more than a cell from the quad's, or a side's edge is not found, is not
     taken. A quad that is not finite is returned as it came. A :class:`RawGrey` is read on a
