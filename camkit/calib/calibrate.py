@@ -69,10 +69,12 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     :func:`held_parameters`), keep their start value (0 for distortion). ``robust_loss``
     ("huber" or "cauchy", scale ``robust_scale_px``) reweights residuals; corners whose
     residual exceeds ``reject_sigma`` robust standard deviations are rejected with the reason
-    recorded, and the fit repeated once. Where the fit from Zhang's start cannot start or ends
+    recorded, and the fit repeated once. Where the fit from Zhang's start cannot start, ends
     with an RMS over a pixel (strong distortion bends the homographies, and the closed form
-    can put the principal point far off), it is tried again from the principal point at the
-    image's centre (:func:`~camkit.calib.start.centred_start`) and the lower cost kept.
+    can put the principal point far off) or leaves its focal length unsure (a standard
+    deviation over 1 % of it: views that determine f weakly give the cost more than one
+    minimum), it is tried again from the principal point at the image's centre
+    (:func:`~camkit.calib.start.centred_start`, OpenCV's start) and the lower cost kept.
 
     Parameters
     ----------
@@ -118,8 +120,7 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     views = [i for i, k in enumerate(keep) if k]
     K, start_poses = closed_form_start(cls, [objs[i] for i in views], [imgs[i] for i in views], w, h,
                                        zero_skew="skew" not in free_names)
-    normals = np.array([p.R[:, 2] for p in start_poses])
-    spread = np.degrees(np.arccos(np.clip(np.abs(normals @ normals.T), -1, 1))).max()
+    spread = _spread(start_poses)
     if spread < 5.0:
         # Zhang 2000 sec. 3.3: with every board normal parallel the focal length is not
         # determined; with lens distortion the linear system is not exactly singular, so this
@@ -166,10 +167,12 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
         failed = None
     except EstimationError as e:
         best, failed = None, e
-    # A fit that ends far from the corners (an RMS over _RETRY_RMS_PX) or cannot start is tried
-    # again from the principal point at the image's centre (centred_start), and the lower RMS
-    # kept (the two may reject different corners as outliers).
-    if cls.start_projection() == "perspective" and (best is None or not _rms(best[3]) <= _RETRY_RMS_PX):
+    # A fit that ends far from the corners (an RMS over _RETRY_RMS_PX), cannot start or leaves
+    # its focal length unsure (_RETRY_F_SHARE) is tried again from the principal point at the
+    # image's centre (centred_start), and the lower RMS kept (the two may reject different
+    # corners as outliers).
+    if cls.start_projection() == "perspective" and (best is None or not _rms(best[3]) <= _RETRY_RMS_PX
+                                                    or _weak_focal(best[0], best[3], free_names)):
         try:
             other = fit(*centred_start(vobjs, vimgs, w, h, "skew" not in free_names))
         except EstimationError:
@@ -194,12 +197,42 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
 _RETRY_RMS_PX = 1.0
 
 
+#: ... and where the fit leaves its focal length unsure: a standard deviation over this share of
+#: it (from the fit's covariance and residual variance). Where the views determine f weakly
+#: the cost has more than one minimum: on OpenCV's four ChArUco tutorial photos (boards within
+#: 6 degrees of one orientation) the fit from Zhang's start ended at fx 612.7 +- 43 px, 0.1932 px
+#: RMS, and from the centre at OpenCV's own minimum, fx 457.3 +- 15.8 px, 0.1878 px RMS.
+#: Well-determined sets (Bouguet's 20 views: 0.06 %) fit once.
+_RETRY_F_SHARE = 0.01
+
+
+def _weak_focal(cam: Any, report: Any, free_names: set[str]) -> bool:
+    """Whether the fit ``cam`` (its solver's ``report``) leaves its focal length unsure (see
+    :data:`_RETRY_F_SHARE`); not where the fit has no covariance."""
+    r = np.asarray(report.residuals, dtype=np.float64)
+    r = r[np.isfinite(r).all(axis=1)]
+    sigma2 = float((r**2).sum() / max(r.size - report.n_params, 1))
+    names = list(report.global_names)
+    for f in ("fx", "fy"):
+        if f in free_names and f in names:
+            var = float(report.covariance[names.index(f), names.index(f)]) * sigma2
+            if np.isfinite(var) and np.sqrt(var) > _RETRY_F_SHARE * abs(float(getattr(cam, f))):
+                return True
+    return False
+
+
 def _rms(report) -> float:
     """The RMS (px, OpenCV's: over corners) of a fit's residuals ``(N, 2)``, over the corners it
     could project; infinite where it projects none."""
     r = np.asarray(report.residuals, dtype=np.float64)
     ok = np.isfinite(r).all(axis=1)
     return float(np.sqrt(np.sum(r[ok] ** 2) / ok.sum())) if ok.any() else float("inf")
+
+
+def _spread(poses: list) -> float:
+    """The largest angle (degrees) between two of the ``poses``' board normals."""
+    normals = np.array([p.R[:, 2] for p in poses])
+    return float(np.degrees(np.arccos(np.clip(np.abs(normals @ normals.T), -1, 1))).max())
 
 
 def _collinear(xy: np.ndarray) -> bool:
