@@ -74,7 +74,11 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     can put the principal point far off) or leaves its focal length unsure (a standard
     deviation over 1 % of it: views that determine f weakly give the cost more than one
     minimum), it is tried again from the principal point at the image's centre
-    (:func:`~camkit.calib.start.centred_start`, OpenCV's start) and the lower cost kept.
+    (:func:`~camkit.calib.start.centred_start`, OpenCV's start) and the lower cost kept. A fit
+    that leaves the focal length unsure by more than a tenth of it is refused, in words: views
+    whose boards all face one way (normals within 5 degrees of each other under Zhang's start:
+    Zhang 2000, sec. 3.3) are fitted and judged so, not refused on the angle alone, since boards
+    tilted about one axis still determine f where the tilt is large.
 
     Parameters
     ----------
@@ -90,8 +94,8 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     Raises
     ------
     EstimationError
-        Too few views or points, or views that cannot determine the camera; the message names
-        the cause and what to do.
+        Too few views or points, or views that cannot determine the camera (a focal length
+        unsure by over 10 %); the message names the cause and what to do.
     """
     objs, imgs = as_views(object_points, image_points)
     w = as_positive_int(width, "width")
@@ -120,14 +124,13 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
     views = [i for i, k in enumerate(keep) if k]
     K, start_poses = closed_form_start(cls, [objs[i] for i in views], [imgs[i] for i in views], w, h,
                                        zero_skew="skew" not in free_names)
+    # Zhang 2000 sec. 3.3: with every board normal parallel the focal length is not determined;
+    # with lens distortion the linear system is not exactly singular, so the geometry raises the
+    # doubt (_MIN_SPREAD_DEG) and the fit's own uncertainty settles it (_PARALLEL_F_SHARE).
     spread = _spread(start_poses)
-    if spread < 5.0:
-        # Zhang 2000 sec. 3.3: with every board normal parallel the focal length is not
-        # determined; with lens distortion the linear system is not exactly singular, so this
-        # is checked on the geometry, not on the numbers.
-        raise EstimationError(f"views: every board is within {spread:.1f} degrees of the same orientation; the "
-                              "focal length cannot be determined. Tilt the board differently between photos "
-                              "(10-50 degrees, about different axes)")
+    parallel = spread < _MIN_SPREAD_DEG
+    if parallel and not {"fx", "fy"} <= free_names:
+        raise _unsure_error(spread, None)
     if "skew" not in free_names:
         K[0, 1] = 0.0
     vobjs, vimgs = [objs[i] for i in views], [imgs[i] for i in views]
@@ -179,8 +182,13 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
             other = None
         if other is not None and (best is None or _rms(other[3]) < _rms(best[3])):
             best = other
+    share = None if best is None else _focal_share(best[0], best[3], free_names, _NOISE_FLOOR_PX)
+    if parallel and (share is None or not share <= _MAX_F_SHARE):
+        raise _unsure_error(spread, share)
     if best is None:
         raise failed
+    if not share <= _MAX_F_SHARE:
+        raise _unsure_error(None, share)
     cam, poses, mask, report, total_iterations, rejected = best
     all_poses: list = [None] * len(objs)
     for k, i in enumerate(views):
@@ -206,19 +214,60 @@ _RETRY_RMS_PX = 1.0
 _RETRY_F_SHARE = 0.01
 
 
+#: Views whose board normals all lie within this angle (degrees) of each other, under Zhang's
+#: start, may not determine the focal length (Zhang 2000, sec. 3.3: parallel boards give no
+#: more constraints than one); the fit's uncertainty decides (:data:`_MAX_F_SHARE`).
+_MIN_SPREAD_DEG = 5.0
+
+
+#: A fit that leaves the focal length with a standard deviation over this share of it is
+#: refused: a focal length unsure by a tenth is no calibration (OpenCV's calibrateCamera returns
+#: such fits without a word). On the real sets the share is 0.02-0.4 % (Bouguet's 20 views, the
+#: six real_boards sets) and 2.3 % on OpenCV's five ChArUco tutorial photos, whose boards are
+#: tilted 20-28 degrees about one axis (normals within 4-6 degrees of each other, so the spread
+#: alone would refuse them); boards square to the camera leave f unsure by hundreds of percent.
+_MAX_F_SHARE = 0.10
+
+
+#: ... with the residuals' standard deviation taken as at least this (px, per coordinate):
+#: exact corners would otherwise give any fit, determined or not, a standard deviation of 0.
+#: No detector locates corners better (camkit's noise-free rendered median error: 0.005 px).
+_NOISE_FLOOR_PX = 0.01
+
+
+def _unsure_error(spread: float | None, share: float | None) -> EstimationError:
+    """The refusal of views that leave the focal length unsure: ``spread`` the angle (degrees)
+    within which every board's normal lies, where under :data:`_MIN_SPREAD_DEG`; ``share`` the
+    fit's focal-length standard deviation over the focal length, where there was a fit."""
+    unsure = "" if share is None else (
+        f"the fit leaves it unsure by {100 * share:.0f} %" if np.isfinite(share) else "the fit leaves it unsure")
+    if spread is not None:
+        cause = (f"every board is within {spread:.1f} degrees of the same orientation; the focal length cannot be "
+                 "determined" + (f" ({unsure})" if unsure else ""))
+    else:
+        cause = f"the views do not determine the focal length ({unsure}, over {100 * _MAX_F_SHARE:.0f} %)"
+    return EstimationError(f"views: {cause}. Tilt the board differently between photos (10-50 degrees, about "
+                           "different axes), in more photos, the board filling more of the image")
+
+
+def _focal_share(cam: Any, report: Any, free_names: set[str], floor_px: float = 0.0) -> float:
+    """The larger of fx's and fy's standard deviation over their value, from the fit ``cam`` (its
+    solver's ``report``): the covariance scaled by the residuals' variance, their standard
+    deviation taken as at least ``floor_px``; 0 where neither is free, NaN where the fit has no
+    covariance."""
+    r = np.asarray(report.residuals, dtype=np.float64)
+    r = r[np.isfinite(r).all(axis=1)]
+    sigma2 = max(float((r**2).sum() / max(r.size - report.n_params, 1)), floor_px**2)
+    names = list(report.global_names)
+    shares = [np.sqrt(float(report.covariance[names.index(f), names.index(f)]) * sigma2) / abs(float(getattr(cam, f)))
+              for f in ("fx", "fy") if f in free_names and f in names]
+    return max(shares, default=0.0) if np.isfinite(shares).all() else float("nan")
+
+
 def _weak_focal(cam: Any, report: Any, free_names: set[str]) -> bool:
     """Whether the fit ``cam`` (its solver's ``report``) leaves its focal length unsure (see
     :data:`_RETRY_F_SHARE`); not where the fit has no covariance."""
-    r = np.asarray(report.residuals, dtype=np.float64)
-    r = r[np.isfinite(r).all(axis=1)]
-    sigma2 = float((r**2).sum() / max(r.size - report.n_params, 1))
-    names = list(report.global_names)
-    for f in ("fx", "fy"):
-        if f in free_names and f in names:
-            var = float(report.covariance[names.index(f), names.index(f)]) * sigma2
-            if np.isfinite(var) and np.sqrt(var) > _RETRY_F_SHARE * abs(float(getattr(cam, f))):
-                return True
-    return False
+    return bool(_focal_share(cam, report, free_names) > _RETRY_F_SHARE)
 
 
 def _rms(report) -> float:
