@@ -6,15 +6,15 @@ from __future__ import annotations
 import glob
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from camkit._validate import check_same_size
 from camkit.calib.calibrate import CalibrationResult, calibrate_detections
-from camkit.errors import ImageFileError, ParameterError
+from camkit.errors import ImageFileError, ParameterError, ShapeError
 from camkit.lens.base import CameraModel
-from camkit.target import Target
+from camkit.target import Detection, Target
 
 #: Width of the thumbnails kept for the report (pixels).
 THUMBNAIL_WIDTH = 240
@@ -163,10 +163,10 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
         except ImageFileError:
             info.append(None)  # read_image below names the problem
 
-    detections, thumbs, size = [], [], None
+    detections, thumbs, sizes = [], [], []
     for k, f in enumerate(files):
         img = read_image(f)
-        size = check_same_size(size, img, f"images[{k}]", f" ({f.name})")
+        sizes.append(tuple(img.shape[:2]))
         detections.append(board.detect(img))
         if "report_file" in outs:
             w = min(THUMBNAIL_WIDTH, img.shape[1])
@@ -177,9 +177,16 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
             progress("detect", k + 1, len(files))
     if progress is not None:
         progress("calibrate", 0, 1)  # the solve starts when detection ends
-    if size is None:
+    if not sizes:
         raise ParameterError("paths: no images given")
-    result = calibrate_detections(detections, board, width=size[1], height=size[0], model=model, fix=fix, free=free)
+    size, odd = _common_size(sizes)
+    # Images of another size go to the solve as boards not found; the result keeps what the
+    # detector found in them, with the reason they were left out.
+    used = [Detection.not_found(len(d.corners), odd[k]) if k in odd else d for k, d in enumerate(detections)]
+    result = calibrate_detections(used, board, width=size[1], height=size[0], model=model, fix=fix, free=free)
+    if odd:
+        result = replace(result, rejected_views=[(i, odd.get(i, r)) for i, r in result.rejected_views],
+                         detections=detections)
     if progress is not None:
         progress("calibrate", 1, 1)
     cam_path = res_path = rep_path = None
@@ -196,6 +203,25 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
         if progress is not None:
             progress("report", 1, 1)
     return CalibrationJob(result, names, cam_path, res_path, rep_path, info)
+
+
+def _common_size(sizes: Sequence[tuple[int, ...]]) -> tuple[tuple[int, int], dict[int, str]]:
+    """The (H, W) that most of the images of one calibration share, and for each image of
+    another size (by index) why it is left out: one calibration is for one camera mode, and an
+    image of another size (a crop, a resized copy, another camera) does not fit its model. Where
+    no size is shared by more than half of the images, which one is the camera's is not clear:
+    a ShapeError lists the sizes."""
+    from collections import Counter
+
+    counts = Counter((int(h), int(w)) for h, w in sizes)
+    (size, n), = counts.most_common(1)
+    if len(counts) > 1 and 2 * n <= len(sizes):
+        listed = ", ".join(f"{w}x{h} ({c} image{'s' if c > 1 else ''})" for (h, w), c in counts.most_common())
+        raise ShapeError(f"images: expected one size for all images (one calibration is for one camera mode), got "
+                         f"{listed}; calibrate each camera mode on its own")
+    odd = {k: f"left out: {w}x{h}, where the other {n} images are {size[1]}x{size[0]} (one calibration is for one "
+              "camera mode)" for k, (h, w) in enumerate(sizes) if (h, w) != size}
+    return size, odd
 
 
 @dataclass(frozen=True, slots=True)

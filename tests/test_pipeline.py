@@ -59,10 +59,27 @@ def test_each_image_is_decoded_once_and_the_report_gets_thumbnails(photos, tmp_p
     assert (tmp_path / "r.html").stat().st_size > 10_000
 
 
-def test_images_of_another_size_are_refused_with_their_name(photos, tmp_path):
-    odd = write_png(tmp_path / "odd.png", np.zeros((100, 120), np.uint8))
-    with pytest.raises(CamkitError, match=r"images\[3\]: expected the size of the first image.*odd.png"):
-        calibrate_files([*photos[:3], odd], BOARD)
+def test_an_image_of_another_size_is_left_out_with_the_reason(photos, tmp_path):
+    """One calibration is for one camera mode: an image of another size than most (Udacity's
+    CarND set has two 1281x721 images among eighteen 1280x720) is left out, named with its size
+    in the views' reasons, and the others calibrate; where no size has a majority, which is the
+    camera's is not clear, and the sizes are listed."""
+    from camkit.io import read_image
+
+    big = read_image(photos[0])
+    odd = write_png(tmp_path / "odd.png", np.pad(big, ((0, 1), (0, 1)), mode="edge"))  # the board found in it
+    assert BOARD.detect(read_image(odd)).found
+    job = calibrate_files([*photos, odd], BOARD)
+    w, h = big.shape[1], big.shape[0]
+    reason = f"left out: {w + 1}x{h + 1}, where the other 6 images are {w}x{h} (one calibration is for one camera mode)"
+    assert job.result.rejected_views == [(6, reason)] and len(job.result.poses) == 6
+    assert job.result.detections[6].found  # what the detector found is kept, for the report
+    assert job.result.rms_px == pytest.approx(calibrate_files(photos, BOARD).result.rms_px, abs=1e-9)
+    small = [write_png(tmp_path / f"s{k}.png", np.zeros((100, 120), np.uint8)) for k in range(3)]
+    with pytest.raises(CamkitError, match=rf"images: expected one size for all images \(one calibration is for one "
+                                          rf"camera mode\), got {w}x{h} \(3 images\), 120x100 \(3 images\); calibrate "
+                                          r"each camera mode on its own"):
+        calibrate_files([*photos[:3], *small], BOARD)
 
 
 def test_undistort_files_checks_everything_before_the_first_write(photos, tmp_path):
