@@ -147,6 +147,14 @@ def stacked_points(objs: list[np.ndarray], poses: list[Pose]) -> np.ndarray:
     return calib_kernels.rotate_views(Rs, ts, np.ascontiguousarray(np.concatenate(objs), dtype=np.float64), view)[1]
 
 
+#: A fit whose RMS is over this (px) says in its message that the model does not fit: corners
+#: of a lens model that fits leave 0.1-0.3 px on real photos (Bouguet's set 0.15, the six
+#: real_boards sets 0.10-0.22 with the right model; a car camera's JPEGs 0.88, OpenCV's fit of
+#: its own corners 0.86); a fisheye lens under brown-conrady leaves 10.4 px, and plantcv_wide's
+#: large board, not flat, 7.6 px (views 1.8-23 px; OpenCV's fit of its own corners 13.0 px).
+_POOR_FIT_RMS_PX = 2.0
+
+
 def assemble_result(cam: CameraModel, objs: list[np.ndarray], imgs: list[np.ndarray], poses: list[Pose | None],
                     views: list[int], mask: list[np.ndarray], free_names: tuple[str, ...], report: RefineReport,
                     iterations: int, rejected: list[tuple[int, int, str]],
@@ -182,12 +190,17 @@ def assemble_result(cam: CameraModel, objs: list[np.ndarray], imgs: list[np.ndar
     with np.errstate(invalid="ignore", divide="ignore"):
         view_rms[views] = np.sqrt(np.bincount(view, weights=sq, minlength=len(views)) / n_used)
     R = res[used]
+    rms = float(np.sqrt((R**2).sum(axis=1).mean()))
+    if not lost.any() and rms > _POOR_FIT_RMS_PX:
+        message = (f"{message}; an RMS of {rms:.1f} px is far more than corners' noise (0.1-0.5 px where the lens "
+                   "model fits): the model does not fit these views (for a fisheye lens, try kannala-brandt), the "
+                   "board is not flat, or some detections are wrong")
     dof = max(R.size - report.n_params, 1)
     sigma2 = float((R**2).sum() / dof)
     cov = report.covariance * sigma2
     names = free_names
     return CalibrationResult(
-        model=cam, poses=[poses[i] for i in views], rms_px=float(np.sqrt((R**2).sum(axis=1).mean())),
+        model=cam, poses=[poses[i] for i in views], rms_px=rms,
         std_px=(float(R[:, 0].std()), float(R[:, 1].std())), view_rms_px=view_rms[views],
         residuals=[residuals[i] for i in views], free_params=names, covariance=cov,
         stddev={n: float(np.sqrt(cov[j, j])) for j, n in enumerate(names)}, rejected=rejected,

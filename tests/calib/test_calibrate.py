@@ -113,6 +113,20 @@ def test_errors_name_the_cause():
         calibrate([OBJ + np.array([0.0, 0.0, 0.1])] * 15, imgs, width=1280, height=960)
 
 
+def test_a_fit_far_from_the_corners_says_the_model_does_not_fit():
+    """An RMS over 2 px (a fisheye under brown-conrady: 10.4 px on boofcv_fisheye; a board not
+    flat) is no corner noise: the result's message says so and what to try; a fit at the
+    corners' noise says nothing of the kind."""
+    _, good = _views(3, noise=0.2)
+    assert "does not fit" not in calibrate([OBJ] * 15, good, width=1280, height=960).message
+    _, bad = _views(3, noise=3.0)
+    res = calibrate([OBJ] * 15, bad, width=1280, height=960, reject_sigma=None)
+    assert res.rms_px > 2.0
+    assert (f"an RMS of {res.rms_px:.1f} px is far more than corners' noise (0.1-0.5 px where the lens model fits): "
+            "the model does not fit these views (for a fisheye lens, try kannala-brandt), the board is not flat, or "
+            "some detections are wrong") in res.message
+
+
 def test_views_no_camera_explains_are_refused_in_words():
     """Homographies that no camera explains (random matrices, as from wrong detections): the
     linear solution is not a camera (in Zhang's terms B = K^-T K^-1 is not positive definite, or
