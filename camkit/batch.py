@@ -119,12 +119,22 @@ def connect(client: Any = None, *, scheduler: str | None = None, workers: int | 
         raise ParameterError(f"workers: expected a positive number of worker processes, got {workers!r}")
     threads = str(max(cores // n, 1))
     # Loopback only; the scheduler's HTTP endpoint on a free port (a fixed one clashes with any
-    # other cluster on the machine); Dask's own log lines only for errors.
+    # other cluster on the machine); Dask's own log lines only for errors. numba's threads are
+    # set in each task (_call, from _TASK_THREADS), not by NUMBA_NUM_THREADS: Dask sets a
+    # worker's environment after the process starts, and a worker spawned from the `camkit`
+    # script imports camkit (and numba, which reads the variable once) before that; numba then
+    # refused to compile once its threads had started ("Cannot set NUMBA_NUM_THREADS to a
+    # different value once the threads have been launched"), and every image failed.
     cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address="127.0.0.1:0",
                            host="127.0.0.1", silence_logs=logging.ERROR,
-                           env={"NUMBA_NUM_THREADS": threads, "OMP_NUM_THREADS": threads})
+                           env={_TASK_THREADS: threads, "OMP_NUM_THREADS": threads})
     c = Client(cluster)
     return c, [c, cluster]
+
+
+#: The worker's environment variable that holds how many of numba's threads each task uses
+#: (the local cluster's cores // workers; see :func:`connect`).
+_TASK_THREADS = "CAMKIT_TASK_THREADS"
 
 
 def _reachable(address: str) -> None:
@@ -193,6 +203,11 @@ def _call(func: Callable[..., dict[str, Any]], item: dict[str, Any], context: An
     hashes are the task's own where it gives them (hashed from the bytes it decoded, one read
     of each file), else read here."""
     t0 = time.perf_counter()
+    threads = os.environ.get(_TASK_THREADS)
+    if threads:  # a local cluster's worker: numba's threads for this task's thread (thread-local)
+        import numba
+
+        numba.set_num_threads(max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS)))
     try:
         rec = dict(func(item, context))
         rec.setdefault("status", "done")

@@ -6,10 +6,12 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -220,6 +222,40 @@ def test_undistort_straightens_the_board(tmp_path, capsys):
     before = src.read_bytes()
     assert main(["undistort", str(tmp_path / "cam.json"), str(src), "-o", str(src.parent)]) == 1
     assert "never overwrites an input" in capsys.readouterr().err and src.read_bytes() == before
+
+
+def test_undistort_run_as_a_user_runs_it_uses_its_workers(tmp_path):
+    """``camkit undistort`` from the console script, in a new process: the local cluster's
+    workers are spawned with the script as their main module, so they import camkit, and numba
+    reads its thread count, before Dask sets their environment. With NUMBA_NUM_THREADS set
+    there, a worker whose threads had started (a cached parallel kernel) and that then compiled
+    one (colour images after grey ones, in a fresh numba cache) failed every image with "Cannot
+    set NUMBA_NUM_THREADS to a different value once the threads have been launched"; tests
+    calling ``main`` in pytest's process never saw it."""
+    script = shutil.which("camkit", path=str(Path(sys.executable).parent))
+    if script is None:
+        pytest.skip("the camkit console script is not installed beside this Python")
+    cam = default_camera("brown-conrady").replace(width=320, height=240, cx=160.0, cy=120.0, fx=250.0, fy=250.0)
+    board = Checkerboard(9, 6, 0.03)
+    grey, rgb = tmp_path / "grey", tmp_path / "rgb"
+    grey.mkdir()
+    rgb.mkdir()
+    for k, pose in enumerate(plan_views(cam, board, 4, np.random.default_rng(5))):
+        img, _ = render_checkerboard(cam, pose, board)
+        img = np.clip(img * 255 + 0.5, 0, 255).astype(np.uint8)
+        write_png(grey / f"v{k}.png", img)
+        write_png(rgb / f"v{k}.png", np.stack([img, img // 2, 255 - img], axis=-1))
+    save_camera(tmp_path / "cam.json", cam)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "numba_cache")}
+    env.pop("NUMBA_NUM_THREADS", None)
+    for src in (grey, rgb):
+        out = tmp_path / f"out_{src.name}"
+        proc = subprocess.run([script, "undistort", str(tmp_path / "cam.json"), str(src), "-o", str(out),
+                               "--workers", "2"], capture_output=True, text=True, timeout=300, env=env)
+        assert proc.returncode == 0, proc.stdout + proc.stderr
+        assert "4 done, 0 skipped, 0 failed" in " ".join(proc.stdout.split()), proc.stdout
+        assert sorted(p.name for p in out.glob("*.png")) == [f"v{k}.png" for k in range(4)]
+    assert read_image(tmp_path / "out_rgb" / "v0.png").shape == (240, 320, 3)
 
 
 @pytest.mark.parametrize("args,expected", [
