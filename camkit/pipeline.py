@@ -47,10 +47,11 @@ def collect_images(inputs: Sequence[str | os.PathLike]) -> InputImages:
       case (``IMG_0001.JPG``), sorted by name; its other files are listed as skipped; not
       recursive;
     - a pattern with ``*``, ``?`` or ``[`` that is not an existing file: the files it matches
-      (sorted), the same suffix rule;
+      (sorted; ``**`` matches any depth of folders), the same suffix rule;
     - a file: taken as given (its content decides its format).
 
-    Raises ParameterError when an input does not exist or nothing is found.
+    Raises ParameterError when an input does not exist or nothing is found (naming a folder's
+    folders, where it has no images but has folders).
     """
     from camkit.io.images import is_image_name
 
@@ -67,12 +68,16 @@ def collect_images(inputs: Sequence[str | os.PathLike]) -> InputImages:
                 elif not q.name.startswith("."):
                     skipped.append((q, "not an image file name"))
             if not any(is_image_name(q) for q in found):
+                subs = sorted(q.name for q in p.iterdir() if q.is_dir() and not q.name.startswith("."))
+                hint = (f"; folders are not searched inside, and it has {len(subs)} folder{'s' * (len(subs) > 1)}: "
+                        + ", ".join(subs[:5]) + (", ..." if len(subs) > 5 else "")
+                        + f" (name one, or a pattern such as '{p / '**' / '*.jpg'}')") if subs else ""
                 raise ParameterError(f"IMAGES: the folder {p} holds no image files (JPEG, PNG, TIFF, BMP, WebP, "
-                                     "PGM/PPM or camera RAW)")
+                                     f"PGM/PPM or camera RAW){hint}")
         elif p.exists():
             paths.append(p)
         elif any(ch in text for ch in "*?["):
-            matches = sorted(Path(m) for m in glob.glob(text))
+            matches = sorted(Path(m) for m in glob.glob(text, recursive=True))
             files = [m for m in matches if m.is_file()]
             if not files:
                 raise ParameterError(f"IMAGES: the pattern {text!r} matches no files")

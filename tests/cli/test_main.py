@@ -369,6 +369,19 @@ def test_folders_globs_and_skipped_files(tmp_path, capsys, shared_data):
     assert load_camera(tmp_path / "c1.json") == load_camera(tmp_path / "c2.json")
     assert main(["calibrate", str(tmp_path / "none_*.jpg"), "--board", "12x13", "--square", "30mm"]) == 1
     _one_line_error(capsys, "matches no files")
+    # A folder of folders: not searched inside; the error names its folders and a pattern
+    # with ** (any depth) finds the images.
+    deep = tmp_path / "set" / "day1" / "cam0"
+    deep.mkdir(parents=True)
+    for f in folder.glob("IMG_*.TIF"):
+        (deep / f.name).write_bytes(f.read_bytes())
+    assert main(["calibrate", str(tmp_path / "set"), "--board", "12x13", "--square", "30mm"]) == 1
+    _one_line_error(capsys, "; folders are not searched inside, and it has 1 folder: day1 (name one, or a pattern "
+                            f"such as '{tmp_path / 'set' / '**' / '*.jpg'}')")
+    assert main(["calibrate", str(tmp_path / "set" / "**" / "*.TIF"), "--board", "12x13", "--square", "30mm",
+                 "-o", str(tmp_path / "c3.json")]) == 0
+    assert "5 images" in capsys.readouterr().out
+    assert load_camera(tmp_path / "c3.json") == load_camera(tmp_path / "c1.json")
 
 
 def test_no_tracebacks_for_bad_camera_files_and_os_errors(tmp_path, capsys):
