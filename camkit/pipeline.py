@@ -145,6 +145,10 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     The images' EXIF (camera, lens, focal length, orientation) goes into the results file and
     the report.
 
+    Images are left out, with the reason in ``result.rejected_views``, where a file cannot be
+    read (damaged, or not an image) or where its size is not the one most images share (see
+    :func:`_common_size`); where no image can be read, a ParameterError.
+
     Each image is decoded once: the target is detected in it and, when a report is asked for,
     a thumbnail (:data:`THUMBNAIL_WIDTH` px wide) is kept for it; only one full image is in memory at
     a time."""
@@ -168,9 +172,18 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
         except ImageFileError:
             info.append(None)  # read_image below names the problem
 
-    detections, thumbs, sizes = [], [], []
+    detections, thumbs, sizes, unread = [], [], [], {}
+    n_points = len(board.object_points())
     for k, f in enumerate(files):
-        img = read_image(f)
+        try:
+            img = read_image(f)
+        except ImageFileError as exc:  # a damaged file among many: left out, with why
+            unread[k] = f"left out: {exc}"
+            detections.append(Detection.not_found(n_points, unread[k]))
+            thumbs.append(None)
+            if progress is not None:
+                progress("detect", k + 1, len(files))
+            continue
         sizes.append(tuple(img.shape[:2]))
         detections.append(board.detect(img))
         if "report_file" in outs:
@@ -182,15 +195,21 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
             progress("detect", k + 1, len(files))
     if progress is not None:
         progress("calibrate", 0, 1)  # the solve starts when detection ends
-    if not sizes:
+    if not files:
         raise ParameterError("paths: no images given")
-    size, odd = _common_size(sizes)
+    if not sizes:
+        raise ParameterError(f"paths: none of the {len(files)} images could be read; the first: "
+                             f"{unread[0].removeprefix('left out: ')}")
+    read = [k for k in range(len(files)) if k not in unread]
+    size, odd_read = _common_size(sizes)
+    odd = {read[j]: reason for j, reason in odd_read.items()}
     # Images of another size go to the solve as boards not found; the result keeps what the
-    # detector found in them, with the reason they were left out.
+    # detector found in them, with the reason they were left out (and so for damaged files).
     used = [Detection.not_found(len(d.corners), odd[k]) if k in odd else d for k, d in enumerate(detections)]
     result = calibrate_detections(used, board, width=size[1], height=size[0], model=model, fix=fix, free=free)
-    if odd:
-        result = replace(result, rejected_views=[(i, odd.get(i, r)) for i, r in result.rejected_views],
+    left_out = {**odd, **unread}
+    if left_out:
+        result = replace(result, rejected_views=[(i, left_out.get(i, r)) for i, r in result.rejected_views],
                          detections=detections)
     if progress is not None:
         progress("calibrate", 1, 1)

@@ -82,6 +82,30 @@ def test_an_image_of_another_size_is_left_out_with_the_reason(photos, tmp_path):
         calibrate_files([*photos[:3], *small], BOARD)
 
 
+def test_a_damaged_file_is_left_out_with_the_reason(photos, tmp_path):
+    """A damaged image among many (a truncated JPEG, text named .png) stops nothing: it is left
+    out with what the reader said, in the views' reasons, and the report labels its place;
+    where no image can be read the job says so."""
+    import json
+
+    cut = tmp_path / "cut.png"
+    cut.write_bytes(photos[0].read_bytes()[:3000])
+    text = tmp_path / "notes.png"
+    text.write_text("taken on Tuesday")
+    job = calibrate_files([*photos, cut, text], BOARD, report_file=tmp_path / "r.html",
+                          results_file=tmp_path / "r.json")
+    reasons = dict(job.result.rejected_views)
+    assert set(reasons) == {6, 7} and len(job.result.poses) == 6
+    assert reasons[6].startswith(f"left out: {cut}: damaged PNG file")
+    assert reasons[7].startswith(f"left out: {text}: not an image file camkit reads")
+    assert job.result.rms_px == pytest.approx(calibrate_files(photos, BOARD).result.rms_px, abs=1e-9)
+    views = json.loads((tmp_path / "r.json").read_text())["views"]
+    assert [v["reason"] for v in views[6:]] == [reasons[6], reasons[7]]
+    assert "damaged PNG file" in (tmp_path / "r.html").read_text()
+    with pytest.raises(CamkitError, match=rf"paths: none of the 2 images could be read; the first: {cut}: damaged"):
+        calibrate_files([cut, text], BOARD)
+
+
 def test_undistort_files_checks_everything_before_the_first_write(photos, tmp_path):
     out = tmp_path / "out"
     job = undistort_files(photos[:2], CAM, out)

@@ -83,7 +83,8 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
     images : sequence of arrays, optional
         The input images or thumbnails of them (any size with the images' aspect; in input
         order), for the thumbnails. :func:`camkit.pipeline.calibrate_files` passes the
-        thumbnails it kept while detecting: no image is decoded twice.
+        thumbnails it kept while detecting: no image is decoded twice. None for a file that
+        could not be read (its place is labelled so).
     image_names : sequence of str, optional
     truth : CameraModel, optional
     image_info : sequence of ImageInfo or None, optional
@@ -106,9 +107,9 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
         raise ParameterError(f"images: expected {n_in} images (one per input view), got {len(images)}")
     if images is not None:
         for k, img in enumerate(images):
-            if not isinstance(img, np.ndarray) or img.ndim not in (2, 3):
-                raise ParameterError(f"images[{k}]: expected an image array (a thumbnail will do), got "
-                                     f"{type(img).__name__}")
+            if img is not None and (not isinstance(img, np.ndarray) or img.ndim not in (2, 3)):
+                raise ParameterError(f"images[{k}]: expected an image array (a thumbnail will do) or None (a file "
+                                     f"that could not be read), got {type(img).__name__}")
     W, H = model.width, model.height
     vnames = [names[i] for i in result.view_indices]
     figs: list[tuple[str, str, str]] = []
@@ -225,6 +226,9 @@ def write_report(path: str | os.PathLike, result: Any, *, images: Sequence[Any] 
             ax = axes.flat[i]
             ax.axis("off")
             if i >= n:
+                continue
+            if images[i] is None:
+                ax.set_title(names[i] + "  (not read)", fontsize=7, color="#cc3311")
                 continue
             small, s = _thumb(images[i], 240, W)
             ax.imshow(small, cmap="grey" if small.ndim == 2 else None, vmin=0, vmax=1)
