@@ -126,7 +126,7 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
                                        zero_skew="skew" not in free_names)
     # Zhang 2000 sec. 3.3: with every board normal parallel the focal length is not determined;
     # with lens distortion the linear system is not exactly singular, so the geometry raises the
-    # doubt (_MIN_SPREAD_DEG) and the fit's own uncertainty settles it (_PARALLEL_F_SHARE).
+    # doubt (_MIN_SPREAD_DEG) and the fit's own uncertainty settles it (_MAX_F_SHARE).
     spread = _spread(start_poses)
     parallel = spread < _MIN_SPREAD_DEG
     if parallel and not {"fx", "fy"} <= free_names:
