@@ -10,7 +10,6 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from camkit._validate import check_same_size
 from camkit.calib.calibrate import CalibrationResult, calibrate_detections
 from camkit.errors import ImageFileError, ParameterError, ShapeError
 from camkit.lens.base import CameraModel
@@ -410,6 +409,9 @@ class RigJob:
     paths: list[list[Path | None]]
     rig_file: Path | None
     written: list[Path] = field(default_factory=list)
+    #: (camera, instant, reason) of each file left out: damaged, or not the size most of its
+    #: camera's images share (as :func:`calibrate_files` leaves them out).
+    left_out: list[tuple[int, int, str]] = field(default_factory=list)
 
 
 def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target: Target, *,
@@ -424,7 +426,9 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
     stereo YAML (``opencv_file``, two cameras) and a Kalibr camchain (``kalibr_file``), each
     atomically, and the report (``report_file``: the first instant both the first two cameras
     saw is shown rectified; those two images are kept from the detection pass, nothing is
-    decoded twice). A camera whose images differ in size is refused naming the file."""
+    decoded twice). A file that cannot be read, or whose size is not the one most of its
+    camera's images share, is left out of that instant (``RigJob.left_out``, with the reason,
+    also in that camera's ``rejected_views``), as :func:`calibrate_files` leaves it out."""
     from camkit.calib.rig import calibrate_rig
     from camkit.io import read_image
     from camkit.io.rig_files import save_rig, write_kalibr_camchain, write_opencv_stereo_yaml
@@ -439,26 +443,51 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
     done = 0
     shown = next((k for k in range(len(instants)) if paths[0][k] is not None and paths[1][k] is not None), None)
     pair: list = []
-    for c, row in zip(names, paths, strict=True):
+    left_out: list[tuple[int, int, str]] = []
+    for ci, (c, row) in enumerate(zip(names, paths, strict=True)):
         dets: list[Any] = []
-        size = None
+        read, read_sizes = [], []
         for k, p in enumerate(row):
             if p is None:
                 dets.append(None)
                 continue
-            img = read_image(p)
-            if report_file is not None and k == shown and len(pair) < 2:
-                pair.append(img)
-            size = check_same_size(size, img, str(p))
-            dets.append(target.detect(img))
             done += 1
+            try:
+                img = read_image(p)
+            except ImageFileError as exc:  # a damaged file: this camera did not see this instant
+                left_out.append((ci, k, f"left out: {exc}"))
+                dets.append(None)
+            else:
+                if report_file is not None and k == shown and len(pair) < 2:
+                    pair.append(img)
+                read.append(k)
+                read_sizes.append(tuple(img.shape[:2]))
+                dets.append(target.detect(img))
             if progress is not None:
                 progress("detect", done, total)
-        if size is None:
+        if not any(p is not None for p in row):
             raise ParameterError(f"--camera {c}: no image of this camera is paired with another camera's")
+        if not read:
+            first = next(r for cc, _, r in left_out if cc == ci)
+            raise ParameterError(f"--camera {c}: none of this camera's {sum(p is not None for p in row)} images could "
+                                 f"be read; the first: {first.removeprefix('left out: ')}")
+        try:
+            size, odd = _common_size(read_sizes)
+        except ShapeError as exc:
+            raise ShapeError(f"--camera {c}: {str(exc).removeprefix('images: ')}") from None
+        for j, reason in odd.items():
+            dets[read[j]] = None
+            left_out.append((ci, read[j], reason))
         views.append(dets)
         sizes.append((size[1], size[0]))
+    if any(k == shown for _, k, _ in left_out):
+        pair = []  # the instant shown rectified lost an image: no pair in the report
     result = calibrate_rig(views, target, sizes=sizes, models=models, names=names, fix=fix, free=free)
+    if left_out:
+        why = {(c, k): r for c, k, r in left_out}
+        result = replace(result, cameras=tuple(
+            replace(cam, rejected_views=[(t, why.get((c, t), r)) for t, r in cam.rejected_views])
+            for c, cam in enumerate(result.cameras)))
     written = []
     if rig_file is not None:
         written.append(save_rig(rig_file, result))
@@ -475,7 +504,8 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
             stems.append(instants[k] if pair_by is not None else first.stem)
         written.append(write_rig_report(report_file, result, pair=pair if len(pair) == 2 else None,
                                         instant_names=stems))
-    return RigJob(result, instants, paths, Path(rig_file) if rig_file is not None else None, written)
+    return RigJob(result, instants, paths, Path(rig_file) if rig_file is not None else None, written,
+                  sorted(left_out))
 
 
 @dataclass(frozen=True, slots=True)

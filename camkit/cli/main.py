@@ -232,6 +232,8 @@ def _cmd_calibrate_rig(args: argparse.Namespace) -> int:
         console.print(_param_table(r.cameras[k], title=f"Camera {name}"))
     console.print(f"RMS {r.rms_px:.3f} px per corner over every camera; {len(r.rejected)} corners rejected as "
                   f"outliers; {r.message}")
+    for c, k, reason in job.left_out:
+        console.print(f"[red]camera {r.names[c]}, instant {job.instants[k]}[/red]: {reason}")
     for path in job.written:
         console.print(f"wrote {path}")
     return 0

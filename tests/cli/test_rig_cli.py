@@ -121,3 +121,37 @@ def test_calibrate_rig_bad_arguments(tmp_path, capsys):
     assert code != 0 and "given twice" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(["rectify", "rig.json", "a", "b", "-o", "x", "--mode", "2"])
+
+
+def test_a_damaged_or_odd_sized_file_leaves_its_camera_out_of_that_instant(tmp_path, capsys):
+    """As ``camkit calibrate`` leaves such files out: a truncated left image and a right image
+    of another size are each left out of their instant, with the reason (printed, in the job
+    and in that camera's rejected_views); the other cameras' images of those instants count."""
+    from camkit.errors import ParameterError
+    from camkit.pipeline import calibrate_rig_files
+
+    cam = BrownConrady(fx=300.0, fy=300.0, cx=159.5, cy=119.5, width=320, height=240, k1=-0.05)
+    board = Checkerboard(inner_cols=5, inner_rows=4, square=0.03)
+    rig_poses = [Pose.identity(), Pose.from_rvec([0, 0, 0], [-0.1, 0, 0])]
+    inst = simulate_rig([cam, cam], rig_poses, board, 6, seed=0)
+    for k, i in enumerate(inst):
+        for side, img in zip("lr", i.images, strict=True):
+            write_png(tmp_path / f"{side}{k}.png", (np.clip(img, 0, 1) * 255).astype(np.uint8))
+    (tmp_path / "l2.png").write_bytes((tmp_path / "l2.png").read_bytes()[:2000])
+    write_png(tmp_path / "r4.png", np.pad(read_image(tmp_path / "r4.png"), ((0, 2), (0, 2)), mode="edge"))
+    code = main(["calibrate-rig", "--camera", "left", str(tmp_path / "l*.png"), "--camera", "right",
+                 str(tmp_path / "r*.png"), "--board", "5x4", "--square", "30mm", "-o", str(tmp_path / "rig.json")])
+    text = " ".join(capsys.readouterr().out.split())
+    assert code == 0, text
+    assert "camera left, instant 2: left out:" in text and "damaged PNG file" in text
+    assert ("camera right, instant 4: left out: 322x242, where the other 5 images are 320x240 (one calibration is "
+            "for one camera mode)") in text
+    job = calibrate_rig_files({"left": sorted(tmp_path.glob("l*.png")), "right": sorted(tmp_path.glob("r*.png"))},
+                              board)
+    assert [(c, k) for c, k, _ in job.left_out] == [(0, 2), (1, 4)]
+    left, right = job.result.cameras
+    assert 2 not in left.view_indices and 4 not in right.view_indices and 4 in left.view_indices
+    assert dict(left.rejected_views)[2] == job.left_out[0][2] and dict(right.rejected_views)[4] == job.left_out[1][2]
+    assert abs(np.linalg.norm(job.result.cam_from_rig[1].t) - 0.1) < 0.002
+    with pytest.raises(ParameterError, match=r"--camera left: none of this camera's 1 images could be read; the first: "):
+        calibrate_rig_files({"left": [tmp_path / "l2.png"], "right": [tmp_path / "r0.png"]}, board)
