@@ -626,7 +626,8 @@ def _detect_one(item: dict[str, Any], ctx: dict[str, Any]) -> dict[str, Any]:
            "pixel_origin": "centre of the top-left pixel is (0, 0)", "found": bool(det.found),
            "message": det.message, "window_px": int(det.window_px), "ids": [int(i) for i in ids],
            "corners_px": np.round(det.corners[ids], 6).tolist(),
-           "sigma_px": [None if not np.isfinite(s) else round(float(s), 6) for s in det.sigma_px[ids]]}
+           "sigma_px": [None if not np.isfinite(s) else round(float(s), 6) for s in det.sigma_px[ids]],
+           "board_seen": list(det.board_seen) if det.board_seen is not None else None}
     write_atomic(Path(ctx["out_dir"]) / item["outputs"][0], (_json.dumps(doc) + "\n").encode())
     return {"outputs": item["outputs"], "found": bool(det.found), "n_found": len(ids), "message": det.message,
             "input_sha256": sha}

@@ -146,8 +146,13 @@ def test_detect_files_writes_what_the_detector_finds(client, shared_data, tmp_pa
         doc = json.loads((tmp_path / "det" / (p.stem + ".json")).read_text())
         det = board.detect(read_image(p))
         assert doc["format"] == "camkit-detection" and doc["found"] == det.found and doc["image"] == p.name
-        assert doc["ids"] == det.ids.tolist()
+        assert doc["ids"] == det.ids.tolist() and doc["board_seen"] is None
         np.testing.assert_allclose(doc["corners_px"], det.pixels, atol=1e-6)
+    # The board miscounted (squares for inner corners): not found, and the whole board seen is said.
+    job = detect_files(paths[:1], Checkerboard(inner_cols=7, inner_rows=5, square=0.03), tmp_path / "det75",
+                       client=client, timeout=120)
+    doc = json.loads((tmp_path / "det75" / (paths[0].stem + ".json")).read_text())
+    assert not doc["found"] and doc["board_seen"] == [6, 4]
 
 
 def test_simulated_shards_are_the_same_bytes_on_one_or_two_workers(client, tmp_path):

@@ -336,6 +336,22 @@ def calibrate_images(images: Any, board: Any, *, model: str = "brown-conrady", f
                                 robust_loss=robust_loss, reject_sigma=reject_sigma)
 
 
+def _other_size(detections: Sequence[Detection], target: Target) -> str:
+    """": N of the M images without the board show a whole board of AxB ..." where at least two
+    detections, and half of those that failed, saw the same whole board of another size
+    (:attr:`Detection.board_seen`: a miscounted board); else ""."""
+    from collections import Counter
+
+    missed = [d for d in detections if not d.found]
+    seen = Counter(d.board_seen for d in missed if d.board_seen is not None)
+    if not seen:
+        return ""
+    (size, n), = seen.most_common(1)
+    if n < max(2, (len(missed) + 1) // 2):
+        return ""
+    return f": {n} of the {len(missed)} images without it show a whole board of {target.seen_note(size)}"
+
+
 def _as_target(board: Any) -> Target:
     if not isinstance(board, Target):
         raise ParameterError(f"board: expected a camkit target (e.g. a Checkerboard), got {type(board).__name__}")
@@ -360,8 +376,8 @@ def calibrate_detections(detections: Sequence[Detection], board: Target, *, widt
         raise EstimationError(
             f"images: the board was found in {len(found)} of {len(detections)} images; calibration needs it in at "
             f"least {_MIN_BOARDS} (better 10 or more), each showing the board tilted a different way. Check the "
-            f"{target.size_note()}, and photograph the whole board, in focus, filling a good part of the image",
-            detections=tuple(detections))
+            f"{target.size_note()}{_other_size(detections, target)}, and photograph the whole board, in focus, "
+            "filling a good part of the image", detections=tuple(detections))
     obj = target.object_points()
     try:
         result = calibrate([obj] * len(detections), [d.corners for d in detections], width=width,

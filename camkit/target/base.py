@@ -50,6 +50,11 @@ class Detection:
         Half-size of the sub-pixel window chosen for this image (0 where none was).
     message : str
         What was found, or why nothing was.
+    board_seen : (int, int) or None
+        Where the target was not found because the image shows a whole board of another size
+        (a checkerboard's lattice of corners with the board's border seen on all four sides):
+        that board's points along its two axes (for a checkerboard, its inner corners, in the
+        order of the target's ``cols x rows`` where the two can be told apart); else None.
     """
 
     found: bool
@@ -57,6 +62,7 @@ class Detection:
     sigma_px: np.ndarray
     window_px: int
     message: str
+    board_seen: tuple[int, int] | None = None
 
     @property
     def ids(self) -> np.ndarray:
@@ -78,9 +84,11 @@ class Detection:
         return int(np.isfinite(self.corners).all(axis=1).sum())
 
     @classmethod
-    def not_found(cls, n_points: int, message: str, window_px: int = 0) -> Detection:
-        """A detection of nothing, with the reason."""
-        return cls(False, np.full((n_points, 2), np.nan), np.full(n_points, np.nan), window_px, message)
+    def not_found(cls, n_points: int, message: str, window_px: int = 0,
+                  board_seen: tuple[int, int] | None = None) -> Detection:
+        """A detection of nothing, with the reason (and the size of a whole board of another
+        size seen, where one was)."""
+        return cls(False, np.full((n_points, 2), np.nan), np.full(n_points, np.nan), window_px, message, board_seen)
 
 
 #: The largest raster side :meth:`Sheet.raster` and :meth:`Sheet.coverage` make (pixels).
@@ -216,6 +224,11 @@ class Target(abc.ABC):
         """What a user should check when the target is not found: its size as they gave it
         (completes "Check the ...")."""
         return f"target's size and layout ({self!r})"
+
+    def seen_note(self, board_seen: tuple[int, int]) -> str:
+        """A whole board of another size that a detection saw (:attr:`Detection.board_seen`),
+        in the target's own terms (completes "a whole board of ...")."""
+        return f"{board_seen[0]}x{board_seen[1]} points"
 
     @classmethod
     @abc.abstractmethod

@@ -91,6 +91,9 @@ class Checkerboard(Target):
     def size_note(self) -> str:
         return f"board size (inner corners {self.inner_cols}x{self.inner_rows}, not squares)"
 
+    def seen_note(self, board_seen: tuple[int, int]) -> str:
+        return f"{board_seen[0]}x{board_seen[1]} inner corners"
+
     def detect(self, image: np.ndarray) -> Detection:
         """The inner corners in ``image``: :func:`detect_corners`."""
         return detect_corners(image, self)
@@ -1746,8 +1749,8 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     cols, rows = board.inner_cols, board.inner_rows
     n_corners = cols * rows
 
-    def fail(msg: str, window: int = 0) -> tuple[Detection, int, bool]:
-        return Detection.not_found(n_corners, msg, window), 0, False
+    def fail(msg: str, window: int = 0, seen: tuple[int, int] | None = None) -> tuple[Detection, int, bool]:
+        return Detection.not_found(n_corners, msg, window, seen), 0, False
 
     spacing = _lattice_spacing(g, pts)
     r = int(np.clip(round(spacing / _SPACING_PER_WINDOW), 2, 5))
@@ -1790,7 +1793,8 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
             # A partial lattice that fits the board either way round: which axis is which is
             # not fixed by the lattice itself, and a misread border would turn the labels.
             return fail(f"not found: the {ext[0]}x{ext[1]} corners seen fit the {cols}x{rows} board either way "
-                        "round; part of the board is hidden or outside the image", r)
+                        "round; part of the board is hidden or outside the image", r,
+                        _other_board(s, g, q, spacing, min_contrast, (cols, rows)))
     else:
         # Longer than the board by one line along one axis and exactly as long along the other
         # (a board with one more corner printed than declared); anything else is not this board.
@@ -1853,7 +1857,7 @@ def _label(s: np.ndarray, shape: tuple[int, ...], pts: np.ndarray, sym: np.ndarr
     if placed is None:
         why = why or (f"the corner lattice is {ext[0]}x{ext[1]}, larger than the board's {cols}x{rows} "
                       "(another pattern joins it, or the board's size is not the one given)")
-        return fail(f"not found: {why}", r)
+        return fail(f"not found: {why}", r, _other_board(s, g, q, spacing, min_contrast, (cols, rows)))
     tgt, off = placed
     g = g + np.asarray(off)
     if tgt != (cols, rows):  # the lattice's first axis runs along the board's rows: turn it
@@ -2384,6 +2388,22 @@ def _washed_out(near: np.ndarray, inner: np.ndarray, dark: np.ndarray) -> bool:
         return False
     d_out, l_out = float(np.mean(near[dark])), float(np.mean(near[~dark]))
     return l_out - d_out < _WASHED_CONTRAST * contrast and d_out - d_in > _WASHED_LIFT * contrast
+
+
+def _other_board(s: np.ndarray, g: np.ndarray, q: np.ndarray, spacing: float, min_contrast: float,
+                 size: tuple[int, int]) -> tuple[int, int] | None:
+    """The inner corners of the whole board a lattice (coordinates ``g`` from 0, corners ``q``)
+    is, where its border is seen on all four sides and it is not the ``size`` (cols, rows)
+    asked for: in the order of ``size``'s (the longer first where cols >= rows). Else None. A
+    failure says it, so that a miscounted board size can be named."""
+    ext = [int(e) for e in g.max(axis=0) + 1]
+    if sorted(ext) == sorted(size):
+        return None
+    sides, _ = _border_evidence(s, g, q, spacing, min_contrast)
+    if not all(v == "border" for v in sides.values()):
+        return None
+    a, b = sorted(ext, reverse=size[0] >= size[1])
+    return (a, b)
 
 
 def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[int, int] | None, str]:

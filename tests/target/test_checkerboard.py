@@ -1432,3 +1432,24 @@ def test_half_mean_kernel_matches_numpy():
     a = np.random.default_rng(0).random((301, 402))
     b = a[:300, :402]
     np.testing.assert_array_equal(_half(a), 0.25 * (b[0::2, 0::2] + b[1::2, 0::2] + b[0::2, 1::2] + b[1::2, 1::2]))
+
+
+def test_a_whole_board_of_another_size_is_named():
+    """The commonest mistake, a miscounted board (squares for inner corners, or one line off):
+    where a lattice is seen with the board's border on all four sides and is not the size asked
+    for, the failure says which board it is (``board_seen``, in the order of the size asked),
+    and a calibration that finds too few boards names it."""
+    from camkit.calib import calibrate_images
+    from camkit.errors import EstimationError
+
+    cam = default_camera("brown-conrady")
+    real = Checkerboard(6, 4, 0.03)
+    images = [render_checkerboard(cam, p, real)[0] for p in plan_views(cam, real, 6, np.random.default_rng(2))]
+    for asked, named in (((7, 5), (6, 4)), ((5, 3), (6, 4)), ((9, 6), (6, 4)), ((3, 5), (4, 6))):
+        dets = [Checkerboard(*asked, 0.03).detect(img) for img in images]
+        assert not any(d.found for d in dets)
+        assert sum(d.board_seen == named for d in dets) >= 5 and all(d.board_seen in (named, None) for d in dets)
+    assert all(d.found and d.board_seen is None for d in (real.detect(img) for img in images))
+    with pytest.raises(EstimationError, match=r"Check the board size \(inner corners 7x5, not squares\): [56] of the 6 "
+                                              r"images without it show a whole board of 6x4 inner corners, and"):
+        calibrate_images(images, Checkerboard(7, 5, 0.03))
