@@ -81,7 +81,7 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Self
 
 import numpy as np
@@ -290,7 +290,7 @@ def _from_tags(grid: AprilGrid, full: np.ndarray, found: dict[int, list[np.ndarr
     places = grid.tag_places()
     if not confirmed:
         return Detection.not_found(N, f"not found: {unconfirmed_reason(found, grid.n_tags, 'tag', 'grid')} "
-                                      f"({grid.family})")
+                                      f"({grid.family}){_turned(grid, found, factor, full.shape)}")
     quads = {m: found[m][0] for m in confirmed}
     quads = _unjoined(grid, quads, factor, bend, full.shape)
     # Tags not read (a quad not found, or merged beyond reading) where their neighbours put them.
@@ -411,6 +411,18 @@ def _from_tags(grid: AprilGrid, full: np.ndarray, found: dict[int, list[np.ndarr
 #: Where fewer tags than this are confirmed from the threshold's quads, tags bounded by
 #: X-junctions (:func:`~camkit.target._markers.junction_quads`) are read as well.
 _JUNCTIONS_BELOW = 4
+
+
+def _turned(grid: AprilGrid, found: dict[int, list[np.ndarray]], factor: int, shape: tuple[int, ...]) -> str:
+    """Where tags were read but none is where ``grid``'s layout puts it, and they fit the grid
+    with its tags counted the other way round (a user's commonest mistake with the grid's
+    size): a clause saying so; else ""."""
+    if grid.tags_x == grid.tags_y or not any(m < grid.n_tags and len(c) == 1 for m, c in found.items()):
+        return ""
+    turned = replace(grid, tags_x=grid.tags_y, tags_y=grid.tags_x)
+    if len(_confirmed(turned, found, factor, shape)[0]) < 2:
+        return ""
+    return f"; the tags read fit a {turned.tags_x}x{turned.tags_y}-tag grid (the tags counted the other way round)"
 
 
 def _confirmed(grid: AprilGrid, found: dict[int, list[np.ndarray]], factor: int,

@@ -99,7 +99,7 @@ shows that is joined to a confirmed marker.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Self
 
 import numpy as np
@@ -261,6 +261,29 @@ class Charuco(Target):
 # -- detection ---------------------------------------------------------------------------------
 
 
+def _other_layout(board: Charuco, found: dict[int, list[np.ndarray]], factor: int) -> str:
+    """Where markers were read but none is where ``board``'s layout puts it: the layout they
+    fit, among the two mistakes a user makes with a board (the squares counted the other way
+    round; OpenCV's layout before 4.6, ``legacy``, which differs on boards with an even number
+    of rows), as a clause to add to the reason; "" where none fits (or nothing was read)."""
+    if not any(m < board.n_markers and len(c) == 1 for m, c in found.items()):
+        return ""
+    turned = (board.squares_y, board.squares_x)
+    options = [(turned, board.legacy, f"a {turned[0]}x{turned[1]}-square board (the squares counted the other way "
+                                      "round)")]
+    for sx, sy in ((board.squares_x, board.squares_y), turned):
+        if sy % 2 == 0:  # legacy changes the layout only where the rows are even
+            flip = ("OpenCV's layout before 4.6 (legacy=True)" if not board.legacy
+                    else "OpenCV's layout since 4.6 (legacy=False)")
+            options.append(((sx, sy), not board.legacy, f"a {sx}x{sy}-square board in {flip}"))
+    for (sx, sy), legacy, words in options:
+        other = replace(board, squares_x=sx, squares_y=sy, legacy=legacy)
+        if len(confirm_markers(found, other.marker_corners()[:, :, :2], other.marker_squares(),
+                               other.square / other.marker, factor)[0]) >= 2:
+            return f"; the markers read fit {words}"
+    return ""
+
+
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image, lazy=True)
@@ -271,6 +294,19 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     ms = board.marker_squares()
     obj = board.marker_corners()[:, :, :2]
     confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
+    if confirmed and board.squares_y % 2 == 0:
+        # The legacy setting moves every marker by one square along its row, but for the rows'
+        # ends: a board read with the wrong setting confirms most of its markers, shifted, and
+        # labels every corner one square off. Where the other setting confirms more, the
+        # setting given is not the board's.
+        other = replace(board, legacy=not board.legacy)
+        n_other = len(confirm_markers(found, other.marker_corners()[:, :, :2], other.marker_squares(),
+                                      other.square / other.marker, factor)[0])
+        if n_other > len(confirmed):
+            layout = "before 4.6 (legacy=True)" if other.legacy else "since 4.6 (legacy=False)"
+            return Detection.not_found(N, f"not found: the markers read fit OpenCV's layout {layout} better than "
+                                          f"the board's ({n_other} confirmed against {len(confirmed)}): its labels "
+                                          "would be a square off")
     if len(confirmed) < _READ_BOARD_BELOW:
         # Too few markers read one by one: the board's markers read together, through its
         # chessboard lattice.
@@ -280,7 +316,8 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if not confirmed:
         why = unconfirmed_reason(found, len(ms), "marker", "board")
-        return Detection.not_found(N, f"not found: {why} (dictionary {board.dictionary})")
+        return Detection.not_found(N, f"not found: {why} (dictionary {board.dictionary})"
+                                      f"{_other_layout(board, found, factor)}")
     # Markers not read (blurred, or their quad not found) where their confirmed neighbours put
     # them: kept where they read as their own id, the right way up.
     quads = recover_markers(full, board.aruco, 1, obj, ms, {m: found[m][0] for m in confirmed})

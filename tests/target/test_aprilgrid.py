@@ -555,3 +555,17 @@ def test_quads_read_in_chunks_read_as_all_at_once(monkeypatch):
         np.testing.assert_array_equal(parts[0][:T], np.arange(T))
         assert parts[0][-1] == -1
     assert (parts[1][T:2 * T] != parts[1][:T]).all()  # placed a quarter turn round: turned
+
+
+def test_a_grid_given_with_its_tags_counted_the_other_way_round_is_named():
+    """A 6x4 grid given as 4x6: no tag is where that layout puts it, nothing is labelled, and
+    the message names the layout the tags read fit."""
+    from camkit.render import default_camera, plan_views, render_target
+
+    cam = default_camera("brown-conrady")
+    real = AprilGrid(6, 4, 0.05, 0.3)
+    img, _ = render_target(cam, plan_views(cam, real, 1, np.random.default_rng(0))[0], real)
+    assert real.detect(img).n_found == 96
+    det = AprilGrid(4, 6, 0.05, 0.3).detect(img)
+    assert not det.found and det.message.endswith(
+        "(tag36h11); the tags read fit a 6x4-tag grid (the tags counted the other way round)"), det.message

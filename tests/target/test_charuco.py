@@ -741,3 +741,28 @@ def test_a_symmetric_point_whose_search_fails_from_its_map_is_sought_from_its_sa
     det = board.detect(img)
     err = dict(zip(det.ids.tolist(), np.hypot(*(det.pixels - truth.corners_px[det.ids]).T), strict=True))
     assert 1 in err and err[1] < 0.1 and max(err.values()) < 1.0, err
+
+
+def test_a_board_given_the_wrong_legacy_setting_or_turned_is_refused_and_named():
+    """OpenCV 4.6 changed the layout of boards with an even number of rows (``legacy``): read
+    with the wrong setting, every marker but the rows' ends sits one square along, so most of
+    them confirm each other and every corner would be labelled a square off. Where the other
+    setting confirms more markers, the board is not found and the message names the setting
+    the markers fit; a board given with its squares counted the other way round (8x11 for
+    11x8) confirms none, and the message names the size they fit. The right settings find it."""
+    from camkit.render import default_camera, plan_views
+
+    cam = default_camera("brown-conrady")
+    for legacy in (True, False):
+        real = Charuco(11, 8, 0.03, 0.022, "DICT_5X5_100", legacy=legacy)
+        img, truth = render_target(cam, plan_views(cam, real, 1, np.random.default_rng(1))[0], real)
+        det = real.detect(img)
+        assert det.found and det.n_found == 70 and np.nanmax(np.abs(det.corners - truth.corners_px)) < 0.1
+        wrong = Charuco(11, 8, 0.03, 0.022, "DICT_5X5_100", legacy=not legacy).detect(img)
+        layout = "before 4.6 (legacy=True)" if legacy else "since 4.6 (legacy=False)"
+        assert not wrong.found and wrong.message.startswith(
+            f"not found: the markers read fit OpenCV's layout {layout} better than the board's (44 confirmed "
+            "against 40): its labels would be a square off"), wrong.message
+        turned = Charuco(8, 11, 0.03, 0.022, "DICT_5X5_100", legacy=legacy).detect(img)
+        assert not turned.found and turned.message.endswith(
+            "; the markers read fit a 11x8-square board (the squares counted the other way round)"), turned.message
