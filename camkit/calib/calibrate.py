@@ -389,5 +389,9 @@ def calibrate_detections(detections: Sequence[Detection], board: Target, *, widt
     reasons = {i: r for i, r in result.rejected_views}
     rejected_views = [(i, reasons[i] if d.found else f"board not found: {d.message}")
                       for i, d in enumerate(detections) if i in reasons]
-    return replace(result, rejected_views=rejected_views, detections=detections)
+    message = result.message
+    other = _other_size(detections, target)
+    if other:  # a board of the size given found in some images, a whole one of another in more
+        message += f"; check the {target.size_note()}{other}"
+    return replace(result, rejected_views=rejected_views, detections=detections, message=message)
 

@@ -1453,3 +1453,14 @@ def test_a_whole_board_of_another_size_is_named():
     with pytest.raises(EstimationError, match=r"Check the board size \(inner corners 7x5, not squares\): [56] of the 6 "
                                               r"images without it show a whole board of 6x4 inner corners, and"):
         calibrate_images(images, Checkerboard(7, 5, 0.03))
+    # Enough boards of the size given to calibrate, and more images showing a whole board of
+    # another: the calibration goes on and its message says so.
+    from camkit.calib import calibrate_detections
+    from camkit.target import Detection
+
+    dets = [real.detect(img) for img in images]
+    odd = [Detection.not_found(24, "not found: ...", board_seen=(7, 5)) for _ in range(4)]
+    res = calibrate_detections(dets + odd, real, width=cam.width, height=cam.height)
+    assert res.message.endswith("; check the board size (inner corners 6x4, not squares): 4 of the 4 images without "
+                                "it show a whole board of 7x5 inner corners")
+    assert "check the board size" not in calibrate_detections(dets, real, width=cam.width, height=cam.height).message
