@@ -171,7 +171,7 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
         except ImageFileError:
             info.append(None)  # read_image below names the problem
 
-    detections, thumbs, sizes, unread = [], [], [], {}
+    detections, thumbs, sizes, unread = [], [], {}, {}
     n_points = len(board.object_points())
     for k, f in enumerate(files):
         try:
@@ -183,7 +183,7 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
             if progress is not None:
                 progress("detect", k + 1, len(files))
             continue
-        sizes.append(tuple(img.shape[:2]))
+        sizes[k] = tuple(img.shape[:2])
         detections.append(board.detect(img))
         if "report_file" in outs:
             w = min(THUMBNAIL_WIDTH, img.shape[1])
@@ -197,11 +197,8 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     if not files:
         raise ParameterError("paths: no images given")
     if not sizes:
-        raise ParameterError(f"paths: none of the {len(files)} images could be read; the first: "
-                             f"{unread[0].removeprefix('left out: ')}")
-    read = [k for k in range(len(files)) if k not in unread]
-    size, odd_read = _common_size(sizes)
-    odd = {read[j]: reason for j, reason in odd_read.items()}
+        raise _none_read("paths", f"the {len(files)} images", unread[0])
+    size, odd = _common_size(sizes)
     # Images of another size go to the solve as boards not found; the result keeps what the
     # detector found in them, with the reason they were left out (and so for damaged files).
     used = [Detection.not_found(len(d.corners), odd[k]) if k in odd else d for k, d in enumerate(detections)]
@@ -228,23 +225,29 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     return CalibrationJob(result, names, cam_path, res_path, rep_path, info)
 
 
-def _common_size(sizes: Sequence[tuple[int, ...]]) -> tuple[tuple[int, int], dict[int, str]]:
-    """The (H, W) that most of the images of one calibration share, and for each image of
-    another size (by index) why it is left out: one calibration is for one camera mode, and an
-    image of another size (a crop, a resized copy, another camera) does not fit its model. Where
-    no size is shared by more than half of the images, which one is the camera's is not clear:
-    a ShapeError lists the sizes."""
+def _common_size(sizes: dict[int, tuple[int, ...]]) -> tuple[tuple[int, int], dict[int, str]]:
+    """The (H, W) that most of the images of one calibration share (``sizes``: each image read,
+    by its index), and for each image of another size (by index) why it is left out: one
+    calibration is for one camera mode, and an image of another size (a crop, a resized copy,
+    another camera) does not fit its model. Where no size is shared by more than half of the
+    images, which one is the camera's is not clear: a ShapeError lists the sizes."""
     from collections import Counter
 
-    counts = Counter((int(h), int(w)) for h, w in sizes)
+    counts = Counter((int(h), int(w)) for h, w, *_ in sizes.values())
     (size, n), = counts.most_common(1)
     if len(counts) > 1 and 2 * n <= len(sizes):
         listed = ", ".join(f"{w}x{h} ({c} image{'s' if c > 1 else ''})" for (h, w), c in counts.most_common())
         raise ShapeError(f"images: expected one size for all images (one calibration is for one camera mode), got "
                          f"{listed}; calibrate each camera mode on its own")
     odd = {k: f"left out: {w}x{h}, where the other {n} images are {size[1]}x{size[0]} (one calibration is for one "
-              "camera mode)" for k, (h, w) in enumerate(sizes) if (h, w) != size}
+              "camera mode)" for k, (h, w, *_) in sizes.items() if (h, w) != size}
     return size, odd
+
+
+def _none_read(what: str, images: str, first: str) -> ParameterError:
+    """The error where none of ``images`` ("the 5 images") could be read; ``first`` the first
+    one's reason (as left out)."""
+    return ParameterError(f"{what}: none of {images} could be read; the first: {first.removeprefix('left out: ')}")
 
 
 @dataclass(frozen=True, slots=True)
@@ -446,7 +449,7 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
     left_out: list[tuple[int, int, str]] = []
     for ci, (c, row) in enumerate(zip(names, paths, strict=True)):
         dets: list[Any] = []
-        read, read_sizes = [], []
+        read_sizes: dict[int, tuple[int, ...]] = {}
         for k, p in enumerate(row):
             if p is None:
                 dets.append(None)
@@ -460,24 +463,22 @@ def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target:
             else:
                 if report_file is not None and k == shown and len(pair) < 2:
                     pair.append(img)
-                read.append(k)
-                read_sizes.append(tuple(img.shape[:2]))
+                read_sizes[k] = tuple(img.shape[:2])
                 dets.append(target.detect(img))
             if progress is not None:
                 progress("detect", done, total)
         if not any(p is not None for p in row):
             raise ParameterError(f"--camera {c}: no image of this camera is paired with another camera's")
-        if not read:
-            first = next(r for cc, _, r in left_out if cc == ci)
-            raise ParameterError(f"--camera {c}: none of this camera's {sum(p is not None for p in row)} images could "
-                                 f"be read; the first: {first.removeprefix('left out: ')}")
+        if not read_sizes:
+            raise _none_read(f"--camera {c}", f"this camera's {sum(p is not None for p in row)} images",
+                             next(r for cc, _, r in left_out if cc == ci))
         try:
             size, odd = _common_size(read_sizes)
         except ShapeError as exc:
             raise ShapeError(f"--camera {c}: {str(exc).removeprefix('images: ')}") from None
-        for j, reason in odd.items():
-            dets[read[j]] = None
-            left_out.append((ci, read[j], reason))
+        for k, reason in odd.items():
+            dets[k] = None
+            left_out.append((ci, k, reason))
         views.append(dets)
         sizes.append((size[1], size[0]))
     if any(k == shown for _, k, _ in left_out):
