@@ -31,7 +31,10 @@ Detection reads the markers first, then places the chessboard corners by their s
    another board's; an id seen twice is dropped; and each marker must be confirmed by a
    neighbour (another marker within two squares such that one homography maps both markers'
    board corners onto their eight image corners within 15 % of a square, 2 px at least) and
-   contradicted by fewer than confirm it. Where fewer than six are confirmed (markers too
+   contradicted by fewer than confirm it. On a board with an even number of rows, where the
+   markers confirm more under the other ``legacy`` setting (OpenCV's layout before or since
+   4.6, which moves markers a square along their rows), the board is not found (its labels
+   would be a square off). Where fewer than six are confirmed (markers too
    small or blurred to read one by one), the board is read as a whole: the chessboard's
    lattice of X-junctions (the checkerboard detector's steps 1-2, its links tested for a black
    and a white square either side inside the white margin too), each square bounded by four
@@ -277,11 +280,15 @@ def _other_layout(board: Charuco, found: dict[int, list[np.ndarray]], factor: in
                     else "OpenCV's layout since 4.6 (legacy=False)")
             options.append(((sx, sy), not board.legacy, f"a {sx}x{sy}-square board in {flip}"))
     for (sx, sy), legacy, words in options:
-        other = replace(board, squares_x=sx, squares_y=sy, legacy=legacy)
-        if len(confirm_markers(found, other.marker_corners()[:, :, :2], other.marker_squares(),
-                               other.square / other.marker, factor)[0]) >= 2:
+        if _n_confirmed(replace(board, squares_x=sx, squares_y=sy, legacy=legacy), found, factor) >= 2:
             return f"; the markers read fit {words}"
     return ""
+
+
+def _n_confirmed(layout: Charuco, found: dict[int, list[np.ndarray]], factor: int) -> int:
+    """How many of the markers read (``found``) confirm each other where ``layout`` puts them."""
+    return len(confirm_markers(found, layout.marker_corners()[:, :, :2], layout.marker_squares(),
+                               layout.square / layout.marker, factor)[0])
 
 
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
@@ -299,11 +306,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         # ends: a board read with the wrong setting confirms most of its markers, shifted, and
         # labels every corner one square off. Where the other setting confirms more, the
         # setting given is not the board's.
-        other = replace(board, legacy=not board.legacy)
-        n_other = len(confirm_markers(found, other.marker_corners()[:, :, :2], other.marker_squares(),
-                                      other.square / other.marker, factor)[0])
+        n_other = _n_confirmed(replace(board, legacy=not board.legacy), found, factor)
         if n_other > len(confirmed):
-            layout = "before 4.6 (legacy=True)" if other.legacy else "since 4.6 (legacy=False)"
+            layout = "since 4.6 (legacy=False)" if board.legacy else "before 4.6 (legacy=True)"
             return Detection.not_found(N, f"not found: the markers read fit OpenCV's layout {layout} better than "
                                           f"the board's ({n_other} confirmed against {len(confirmed)}): its labels "
                                           "would be a square off")
