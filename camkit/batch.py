@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from camkit._atomic import write_atomic
+from camkit._repr import summary_repr
 from camkit.errors import EstimationError, ParameterError
 
 __all__ = ["BatchSummary", "connect", "file_sha256", "run_batch"]
@@ -68,6 +69,9 @@ class BatchSummary:
     results: dict[str, dict[str, Any]] = field(default_factory=dict)
     manifest: Path | None = None
     workers: int = 0
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     @property
     def per_second(self) -> float:

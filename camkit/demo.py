@@ -9,6 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from camkit._repr import summary_repr
 from camkit.lens.base import CameraModel
 from camkit.pipeline import CalibrationJob, calibrate_files
 from camkit.render.effects import Defocus, Effects, Exposure
@@ -26,6 +27,9 @@ class DemoResult:
     job: CalibrationJob
     out_dir: Path
     image_dir: Path
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def demo_effects(camera: CameraModel) -> Effects:

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
+from camkit._repr import summary_repr
 from camkit.calib.calibrate import CalibrationResult, calibrate_detections
 from camkit.errors import ImageFileError, ParameterError, ShapeError
 from camkit.lens.base import CameraModel
@@ -37,6 +38,9 @@ class InputImages:
 
     paths: list[Path]
     skipped: list[tuple[Path, str]] = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def collect_images(inputs: Sequence[str | os.PathLike]) -> InputImages:
@@ -128,6 +132,9 @@ class CalibrationJob:
     results_file: Path | None
     report_file: Path | None
     image_info: list = field(default_factory=list)
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model: str = "brown-conrady",
@@ -260,6 +267,9 @@ class UndistortJob:
     out_dir: Path
     new_model: CameraModel
     summary: Any = None
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def _one_output_each(paths: Sequence[str | os.PathLike], out_dir: str | os.PathLike, suffix: str, what: str,
@@ -416,6 +426,9 @@ class RigJob:
     #: camera's images share (as :func:`calibrate_files` leaves them out).
     left_out: list[tuple[int, int, str]] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        return summary_repr(self)
+
 
 def calibrate_rig_files(cameras: dict[str, Sequence[str | os.PathLike]], target: Target, *,
                         pair_by: str | None = None, models: Any = "brown-conrady", fix: tuple[str, ...] | None = None,
@@ -520,6 +533,9 @@ class RectifyJob:
     rectification: Any
     stereo_file: Path
     summary: Any = None
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def _rectify_maps(rect: Any) -> Any:
@@ -643,6 +659,9 @@ class DetectJob:
     out_dir: Path
     summary: Any
 
+    def __repr__(self) -> str:
+        return summary_repr(self)
+
 
 def detect_files(paths: Sequence[str | os.PathLike], target: Target, out_dir: str | os.PathLike, *,
                  client: Any = None, scheduler: str | None = None, workers: int | None = None,
@@ -694,6 +713,9 @@ class SimulateJob:
     truth_files: list[Path]
     shards: int
     summary: Any
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def simulate_files(out_dir: str | os.PathLike, camera: CameraModel, board: Target, views: int, *, seed: int,

@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._repr import summary_repr
 from camkit._validate import as_points
 from camkit.calib.homography import find_homography
 from camkit.calib.refine import Linearization, LMOptions, solve
@@ -28,6 +29,9 @@ class PnPResult:
     converged: bool
     iterations: int
     message: str
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def _nearest_rotation(M: np.ndarray) -> np.ndarray:

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from camkit._kernels import calib as calib_kernels
+from camkit._repr import summary_repr
 from camkit.calib.refine import RefineReport
 from camkit.errors import ParameterError
 from camkit.geometry.pose import Pose
@@ -89,6 +90,9 @@ class CalibrationResult:
     iterations: int = 0
     cost: float = float("nan")
     message: str = ""
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     def view_ypr_deg(self) -> np.ndarray:
         """Yaw, pitch, roll (degrees) of the camera relative to the board, per view (n, 3)."""

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 
 from camkit._kernels import calib as calib_kernels
+from camkit._repr import summary_repr
 from camkit._validate import as_positive_int, check_choice
 from camkit.calib.calibrate import CalibrationResult, calibrate, held_parameters
 from camkit.calib.homography import dlt_homographies
@@ -146,6 +147,9 @@ class RigResult:
     iterations: int = 0
     cost: float = float("nan")
     message: str = ""
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     @property
     def models(self) -> tuple[CameraModel, ...]:

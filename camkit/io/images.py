@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from camkit._atomic import write_atomic
+from camkit._repr import summary_repr
 from camkit._validate import as_image, as_positive_int
 from camkit.errors import ImageFileError, ParameterError, ShapeError
 
@@ -106,6 +107,9 @@ class ImageInfo:
     focal_length_mm: float | None = None
     focal_length_35mm: float | None = None
 
+    def __repr__(self) -> str:
+        return summary_repr(self)
+
     def exif_dict(self) -> dict[str, Any]:
         """The EXIF fields present, for results files and reports (absent ones left out)."""
         keys = ("make", "model", "lens", "focal_length_mm", "focal_length_35mm")
@@ -140,6 +144,9 @@ class RawImage:
     black_level: np.ndarray
     white_level: float
     white_balance: np.ndarray
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     def normalised(self) -> np.ndarray:
         """The mosaic as float32 with the black level subtracted and the white level at 1:

@@ -8,6 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from camkit._repr import summary_repr
 from camkit._validate import as_positive_int
 from camkit.errors import ParameterError
 from camkit.geometry.pose import Pose
@@ -36,6 +37,9 @@ class RigInstant:
     rig_from_target: Pose
     corners_px: list[np.ndarray]
     images: list[np.ndarray] | None
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def simulate_rig(cameras: Sequence[CameraModel], cam_from_rig: Sequence[Pose], target: Target, instants: int, *,

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._repr import summary_repr
 from camkit._validate import as_points, as_positive_float
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import Pose
@@ -83,6 +84,9 @@ class StressView:
     jpeg_quality: int | None
     tags: dict[str, Any] = field(default_factory=dict)
     obliquity_deg: float = 0.0
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     @property
     def whole(self) -> bool:

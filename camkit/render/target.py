@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from camkit._kernels import render as render_kernels
+from camkit._repr import summary_repr
 from camkit._validate import as_finite_float, as_image, as_positive_int
 from camkit.errors import ParameterError, ShapeError
 from camkit.geometry.pose import Pose
@@ -49,6 +50,9 @@ class RenderTruth:
     camera: CameraModel
     board: Target
     depth: np.ndarray
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
 
 def _check_level(x: float, name: str) -> float:

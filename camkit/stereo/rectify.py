@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._repr import summary_repr
 from camkit._validate import as_finite_float, as_points, as_positive_int
 from camkit.errors import CamkitError, ParameterError
 from camkit.geometry.pose import Pose
@@ -65,6 +66,9 @@ class StereoRectification:
     valid_left: tuple[int, int, int, int]
     valid_right: tuple[int, int, int, int]
     vertical: bool
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     @property
     def P_left(self) -> np.ndarray:

@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from camkit._repr import summary_repr
 from camkit._validate import as_finite_float, as_points, as_positive_int
 from camkit.calib.rig import CameraRig, RigResult
 from camkit.errors import ParameterError, ShapeError
@@ -39,6 +40,9 @@ class Triangulation:
     points: np.ndarray
     covariance: np.ndarray
     reprojection_px: np.ndarray
+
+    def __repr__(self) -> str:
+        return summary_repr(self)
 
     def sigma(self) -> np.ndarray:
         """One-sigma along each point's worst direction, (N,) (square root of the covariance's

@@ -23,6 +23,7 @@ from typing import Any, ClassVar, Self, TypeVar
 import numpy as np
 
 from camkit._registry import Registry
+from camkit._repr import summary_repr
 from camkit._validate import as_positive_float
 from camkit.errors import ParameterError
 
@@ -63,6 +64,9 @@ class Detection:
     window_px: int
     message: str
     board_seen: tuple[int, int] | None = None
+
+    def __repr__(self) -> str:
+        return summary_repr(self, n_found=self.n_found)
 
     @property
     def ids(self) -> np.ndarray:
