@@ -180,7 +180,8 @@ IMAGE_DTYPES = (np.uint8, np.uint16, np.float32, np.float64)
 
 def as_image(img: Any, name: str, *, max_channels: int = 4) -> np.ndarray:
     """Return ``img`` as an (H, W) or (H, W, C) array of a supported dtype (uint8, uint16,
-    float32, float64), C in 1..max_channels, H and W >= 1. The dtype is kept."""
+    float32, float64), C in 1..max_channels, H and W >= 1. The dtype is kept; data in the other
+    byte order are copied to the machine's."""
     if not isinstance(img, np.ndarray):
         raise ShapeError(f"{name}: expected a NumPy array (H, W) or (H, W, C), got {_kind_of(img)}")
     if img.dtype.type not in IMAGE_DTYPES:
@@ -193,6 +194,8 @@ def as_image(img: Any, name: str, *, max_channels: int = 4) -> np.ndarray:
         )
     if img.shape[0] < 1 or img.shape[1] < 1:
         raise ShapeError(f"{name}: expected a non-empty image, got shape {img.shape}")
+    if not img.dtype.isnative:   # big-endian data (FITS, some TIFFs): the kernels read native order
+        img = img.astype(img.dtype.newbyteorder("="))
     return img
 
 

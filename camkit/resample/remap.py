@@ -110,6 +110,8 @@ def remap(image: np.ndarray, map_xy: Any, *, interpolation: str = "bilinear", bo
         raise ShapeError(f"map_xy: expected a float32 or float64 array, got {got}")
     if map_xy.ndim != 3 or map_xy.shape[2] != 2:
         raise ShapeError(f"map_xy: expected shape (H_out, W_out, 2), got {map_xy.shape}")
+    if not map_xy.dtype.isnative:
+        map_xy = map_xy.astype(map_xy.dtype.newbyteorder("="))
     out_shape = (*map_xy.shape[:2], img3.shape[2])
     out = new_image(out_shape, img.dtype)
     if out.size:
