@@ -244,11 +244,20 @@ def _common_size(sizes: dict[int, tuple[int, ...]]) -> tuple[tuple[int, int], di
     (size, n), = counts.most_common(1)
     if len(counts) > 1 and 2 * n <= len(sizes):
         listed = ", ".join(f"{w}x{h} ({c} image{'s' if c > 1 else ''})" for (h, w), c in counts.most_common())
+        turned = len(counts) == 2 and (size[1], size[0]) in counts
         raise ShapeError(f"images: expected one size for all images (one calibration is for one camera mode), got "
-                         f"{listed}; calibrate each camera mode on its own")
-    odd = {k: f"left out: {w}x{h}, where the other {n} images are {size[1]}x{size[0]} (one calibration is for one "
-              "camera mode)" for k, (h, w, *_) in sizes.items() if (h, w) != size}
+                         f"{listed}; " + (_TURNED if turned else "calibrate each camera mode on its own"))
+    odd = {k: f"left out: {w}x{h}, where the other {n} images are {size[1]}x{size[0]} " + (
+              f"({_TURNED})" if (h, w) == (size[1], size[0]) else "(one calibration is for one camera mode)")
+           for k, (h, w, *_) in sizes.items() if (h, w) != size}
     return size, odd
+
+
+# Images of one camera whose sizes are each other's turned a quarter: copies that an exporter
+# turned upright by their EXIF orientation (a phone held upright). camkit reads every image's
+# rows as the sensor stored them, so the camera's own files have one size.
+_TURNED = ("the same size turned a quarter: copies turned upright by their orientation tag, where camkit reads "
+           "rows as the sensor stored them; use the camera's original files")
 
 
 def _none_read(what: str, images: str, first: str) -> ParameterError:

@@ -82,6 +82,24 @@ def test_an_image_of_another_size_is_left_out_with_the_reason(photos, tmp_path):
         calibrate_files([*photos[:3], *small], BOARD)
 
 
+def test_images_turned_a_quarter_are_named_as_copies_turned_upright(photos, tmp_path):
+    """A phone's photos exported turned upright by their orientation tag have sizes that are
+    each other's turned a quarter: the reason says so, and where to find the files that fit."""
+    from camkit.io import read_image
+
+    big = read_image(photos[0])
+    w, h = big.shape[1], big.shape[0]
+    turned = [write_png(tmp_path / f"t{k}.png", np.rot90(read_image(photos[k])).copy()) for k in range(3)]
+    job = calibrate_files([*photos, turned[0]], BOARD)
+    assert job.result.rejected_views == [(6, f"left out: {h}x{w}, where the other 6 images are {w}x{h} (the same "
+                                              "size turned a quarter: copies turned upright by their orientation tag, "
+                                              "where camkit reads rows as the sensor stored them; use the camera's "
+                                              "original files)")]
+    with pytest.raises(CamkitError, match=rf"got {w}x{h} \(3 images\), {h}x{w} \(3 images\); the same size turned a "
+                                          "quarter: copies turned upright"):
+        calibrate_files([*photos[:3], *turned], BOARD)
+
+
 def test_a_damaged_file_is_left_out_with_the_reason(photos, tmp_path):
     """A damaged image among many (a truncated JPEG, text named .png) stops nothing: it is left
     out with what the reader said, in the views' reasons, and the report labels its place;
