@@ -155,11 +155,11 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     read (damaged, or not an image) or where its size is not the one most images share (see
     :func:`_common_size`); where no image can be read, a ParameterError.
 
-    Each image is decoded once: the target is detected in it and, when a report is asked for,
+    Each file is read once and decoded once: the target is detected in it and, when a report is asked for,
     a thumbnail (:data:`THUMBNAIL_WIDTH` px wide) is kept for it; only one full image is in memory at
     a time."""
     from camkit.io.camera_files import save_camera
-    from camkit.io.images import read_image, read_image_info
+    from camkit.io.images import read_image_and_info
     from camkit.io.results import write_results
     from camkit.report import write_report
     from camkit.resample import resize
@@ -171,25 +171,20 @@ def calibrate_files(paths: Sequence[str | os.PathLike], board: Target, *, model:
     outs = prepare_outputs({"camera_file": camera_file, "results_file": results_file, "report_file": report_file},
                            files)
     names = [f.name if len({g.name for g in files}) == len(files) else str(f) for f in files]
-    info = []
-    for f in files:
-        try:
-            info.append(read_image_info(f))
-        except ImageFileError:
-            info.append(None)  # read_image below names the problem
-
-    detections, thumbs, sizes, unread = [], [], {}, {}
+    detections, thumbs, sizes, unread, info = [], [], {}, {}, []
     n_points = len(board.object_points())
     for k, f in enumerate(files):
         try:
-            img = read_image(f)
+            img, image_info = read_image_and_info(f)
         except ImageFileError as exc:  # a damaged file among many: left out, with why
             unread[k] = f"left out: {exc}"
             detections.append(Detection.not_found(n_points, unread[k]))
             thumbs.append(None)
+            info.append(None)
             if progress is not None:
                 progress("detect", k + 1, len(files))
             continue
+        info.append(image_info)
         sizes[k] = tuple(img.shape[:2])
         detections.append(board.detect(img))
         if "report_file" in outs:

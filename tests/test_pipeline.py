@@ -33,15 +33,20 @@ def photos(tmp_path_factory):
     return paths
 
 
-def test_each_image_is_decoded_once_and_the_report_gets_thumbnails(photos, tmp_path, monkeypatch):
-    calls = []
-    real = camkit.io.images.read_image
+def test_each_image_is_read_and_decoded_once_and_the_report_gets_thumbnails(photos, tmp_path, monkeypatch):
+    calls, decoded = [], []
+    real, real_decode = camkit.io.images._read_bytes, camkit.io.images._decode_image
 
     def counting(path, *args, **kwargs):
         calls.append(path)
         return real(path, *args, **kwargs)
 
-    monkeypatch.setattr(camkit.io.images, "read_image", counting)
+    def counting_decode(data, path, *args):
+        decoded.append(path)
+        return real_decode(data, path, *args)
+
+    monkeypatch.setattr(camkit.io.images, "_read_bytes", counting)
+    monkeypatch.setattr(camkit.io.images, "_decode_image", counting_decode)
     seen = {}
     import camkit.report.html as html
 
@@ -53,7 +58,9 @@ def test_each_image_is_decoded_once_and_the_report_gets_thumbnails(photos, tmp_p
 
     monkeypatch.setattr(html, "_thumb", spy)
     job = calibrate_files(photos, BOARD, report_file=tmp_path / "r.html", results_file=tmp_path / "r.json")
-    assert sorted(map(str, calls)) == sorted(map(str, photos))  # once each, report included
+    assert sorted(map(str, calls)) == sorted(map(str, photos))  # once each: pixels, EXIF, report
+    assert sorted(map(str, decoded)) == sorted(map(str, photos))
+    assert [i.width for i in job.image_info] == [640] * len(photos)  # the EXIF reading got its bytes
     assert seen["widths"] == [THUMBNAIL_WIDTH] * len(photos)  # the report drew the kept thumbnails
     assert job.result.rms_px < 0.1 and len(job.result.detections) == len(photos)
     assert (tmp_path / "r.html").stat().st_size > 10_000

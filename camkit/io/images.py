@@ -40,6 +40,7 @@ __all__ = [
     "RawImage",
     "is_image_name",
     "read_image",
+    "read_image_and_info",
     "read_image_info",
     "read_image_sha256",
     "read_raw",
@@ -367,6 +368,22 @@ def read_image_sha256(path: str | os.PathLike, *,
     cap = as_positive_int(max_pixels, "max_pixels")
     data = _read_bytes(p)
     return _decode_image(data, p, cap), hashlib.sha256(data).hexdigest()
+
+
+def read_image_and_info(path: str | os.PathLike, *,
+                        max_pixels: int = DEFAULT_MAX_PIXELS) -> tuple[np.ndarray, ImageInfo | None]:
+    """:func:`read_image` and :func:`read_image_info` from one read of the file (a calibration
+    reads each photo's pixels and its EXIF; a file on a network share is then fetched once).
+    The info is None where only the pixels could be made out. Raises as :func:`read_image`."""
+    p = _as_path(path)
+    cap = as_positive_int(max_pixels, "max_pixels")
+    data = _read_bytes(p)
+    img = _decode_image(data, p, cap)
+    try:
+        info = _info(data, p)
+    except ImageFileError:
+        info = None
+    return img, info
 
 
 def _decode_image(data: bytes, p: Path, cap: int) -> np.ndarray:

@@ -10,7 +10,7 @@ import pytest
 from PIL import Image
 
 from camkit.errors import ParameterError, ShapeError
-from camkit.io import ImageFileError, read_image, read_image_info, write_image, write_png
+from camkit.io import ImageFileError, read_image, read_image_and_info, read_image_info, write_image, write_png
 
 RNG = np.random.default_rng(7)
 # A smooth image plus noise, so every PNG filter type and LZW code-width change is exercised.
@@ -244,6 +244,8 @@ def test_image_info_and_exif(tmp_path):
     assert info.focal_length_mm == pytest.approx(4.25) and info.focal_length_35mm == 26
     assert info.exif_dict()["orientation"] == 6
     assert read_image(path).shape == RGB.shape  # stored grid, not the displayed one
+    both_img, both_info = read_image_and_info(path)  # one read of the file, the same two answers
+    assert np.array_equal(both_img, read_image(path)) and both_info == info
     bare = tmp_path / "bare.png"
     Image.fromarray(GREY).save(bare)
     info = read_image_info(bare)
