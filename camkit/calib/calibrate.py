@@ -82,8 +82,8 @@ def calibrate(object_points: Any, image_points: Any, *, width: int, height: int,
 
     Parameters
     ----------
-    object_points : list of (N_i, 3) arrays, Z = 0
-    image_points : list of (N_i, 2) arrays; NaN rows for corners not seen
+    object_points : list of (N_i, 3) arrays, Z = 0, or one (V, N, 3) array
+    image_points : list of (N_i, 2) arrays, or one (V, N, 2) array; NaN rows for corners not seen
     width, height : int
     model : registry name
 

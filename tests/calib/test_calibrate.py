@@ -113,6 +113,17 @@ def test_errors_name_the_cause():
         calibrate([OBJ + np.array([0.0, 0.0, 0.1])] * 15, imgs, width=1280, height=960)
 
 
+def test_views_may_come_stacked_as_arrays():
+    """(V, N, 3) and (V, N, 2) arrays are the lists of their views, as OpenCV takes them."""
+    _, imgs = _views(8, n=6)
+    listed = calibrate([OBJ] * 6, imgs, width=1280, height=960)
+    stacked = calibrate(np.stack([OBJ] * 6), np.stack(imgs), width=1280, height=960)
+    assert stacked.model == listed.model and stacked.rms_px == listed.rms_px
+    with pytest.raises(ShapeError, match=r"expected lists with one array per view, or \(V, N, 3\) and \(V, N, 2\) "
+                                         r"arrays, got an array of shape \(54, 3\) and list"):
+        calibrate(OBJ, imgs, width=1280, height=960)
+
+
 def test_a_fit_far_from_the_corners_says_the_model_does_not_fit():
     """An RMS over 2 px (a fisheye under brown-conrady: 10.4 px on boofcv_fisheye; a board not
     flat) is no corner noise: the result's message says so and what to try; a fit at the
