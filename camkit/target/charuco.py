@@ -93,6 +93,12 @@ Detection reads the markers first, then places the chessboard corners by their s
    neighbour on the board from every found corner). The saddle fit's small window leaves sheared or noisy
    junctions beside markers a poor fit (corpus view 98: sigmas 0.74-0.79 px); the symmetric
    point reads the junction's edges and the markers' borders.
+7. a corner beside markers whose fit in step 4 found no saddle near its prediction, and that
+   no later step found: searched for from that prediction with a window of a third of its
+   clearance from the markers and as much smoothing as keeps clear of them (a twelfth of the
+   square at most), then refined and tested as growth's corners. Through a fisheye the
+   markers of squares 200 px across predict their corners a few pixels off, beyond the fine
+   fit's window of at most 5 px.
 
 Every returned corner is labelled by markers read where the board's layout puts them, directly
 or through a chain of squares from one, so a board half out of the frame gives every corner it
@@ -476,6 +482,33 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         out[c[poor]] = np.nan
         sig[c[poor]] = np.nan
     _from_homographies(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
+    # A corner beside markers whose fit found no saddle near its markers' prediction, and that
+    # nothing later found: searched for first with a window of a third of its clearance from
+    # the markers and as much smoothing as keeps clear of them too (a twelfth of the square at
+    # most), then refined and held to the tests of growth's corners (_place_corners). On large
+    # squares through a fisheye the markers predict it a few pixels off, beyond the fine fit's
+    # window of at most 5 px, and growth's parallelogram further (corpus view 1521, squares
+    # of 190-270 px, markers 50 px away: 4.8 and 5.8 px off, growth's 21 and 38 px); growth's
+    # own coarse search, a twelfth of the square's smoothing, would reach the markers.
+    missing = lost & ~np.isfinite(out[cand]).all(axis=1)
+    if missing.any():
+        k = np.flatnonzero(missing)
+        sz = size[cand[k]]
+        rk = np.clip(np.floor(clear[k] / 3.0), 0, 25).astype(int)
+        smk = np.minimum((clear[k] - rk) / 2.5, sz / 12.0)
+        go = (rk >= 2) & (smk >= _FULL_SMOOTHING * factor)
+        start = np.full((len(k), 2), np.nan)
+        for r in np.unique(rk[go]):
+            g = np.flatnonzero(go & (rk == r))
+            steps = int(np.clip(np.ceil(0.1 * sz[g].max()), 6, 25))
+            q, _ = refine_patches(full, pred[k[g]], int(r), float(smk[g].min()), iters=steps)
+            near = np.hypot(*(q - pred[k[g]]).T) <= 0.1 * sz[g]
+            start[g[near]] = q[near]
+        k, start = k[np.isfinite(start).all(axis=1)], start[np.isfinite(start).all(axis=1)]
+        if len(k):
+            others = np.stack([pred[k] + u[k], pred[k] - u[k], pred[k] + v[k], pred[k] - v[k]], axis=1)
+            _place_corners(board, full, level, factor, cand[k], pred[k], size[cand[k]], out, sig, others, u[k],
+                           v[k], win_of, sm_of, res_of, typical, start)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
