@@ -129,9 +129,16 @@ def undistort_image(image: np.ndarray, model: Any, new_model: Any = None, *,
     ``new_model`` defaults to a pinhole with the model's intrinsics and size; choose one with
     :func:`camkit.resample.maps.optimal_pinhole` to keep all pixels (``alpha=1``) or only
     valid ones (``alpha=0``). Output pixels that no source ray reaches get ``fill_value``.
+    The image must have the model's size (a ShapeError otherwise).
     """
     from camkit.resample.maps import undistort_map
 
     img = as_image(image, "image")
+    # A model describes the pixels of the image size it was calibrated at; an image of another
+    # size (a resized copy, another sensor mode) would be remapped through the wrong pixels.
+    width, height = getattr(model, "width", None), getattr(model, "height", None)
+    if width is not None and (img.shape[1], img.shape[0]) != (width, height):
+        raise ShapeError(f"image: expected {width}x{height} (the size the camera model describes), got "
+                         f"{img.shape[1]}x{img.shape[0]}; calibrate the camera at this size")
     return remap(img, undistort_map(model, new_model), interpolation=interpolation, border=border,
                  fill_value=fill_value, bicubic_a=bicubic_a)

@@ -6,7 +6,7 @@ import cv2
 import numpy as np
 import pytest
 
-from camkit.errors import ParameterError
+from camkit.errors import ParameterError, ShapeError
 from camkit.geometry import matrix_from_rvec
 from camkit.lens import BrownConrady, KannalaBrandt, Pinhole
 from camkit.resample import optimal_pinhole, remap, reproject_map, undistort_image, undistort_map
@@ -123,3 +123,12 @@ def test_bad_input():
     fish = KannalaBrandt(fx=150.0, fy=150.0, cx=319.5, cy=239.5, width=640, height=480)
     with pytest.raises(ParameterError, match="no ray in front of the camera"):
         optimal_pinhole(fish, 1.0)
+
+
+def test_undistort_image_refuses_an_image_of_another_size():
+    """A model describes the pixels of its own image size: a resized copy remapped through it
+    would be silently wrong (the map samples its top-left 640x480)."""
+    with pytest.raises(ShapeError, match=r"image: expected 640x480 \(the size the camera model describes\), got "
+                                         r"1280x960"):
+        undistort_image(np.zeros((960, 1280), np.uint8), BC)
+    assert undistort_image(np.zeros((480, 640, 3), np.uint8), BC).shape == (480, 640, 3)
