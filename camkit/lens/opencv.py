@@ -34,9 +34,12 @@ def from_opencv(K: Any, dist: Any, *, width: int, height: int) -> BrownConrady:
     Parameters
     ----------
     K : array_like, (3, 3)
-    dist : array_like, 4, 5, 8, 12 or 14 values (any of OpenCV's shapes: (n,), (1, n), (n, 1))
+    dist : array_like, 4, 5, 8, 12 or 14 values (any of OpenCV's shapes: (n,), (1, n), (n, 1)),
+        or None or no values
         ``(k1, k2, p1, p2[, k3[, k4, k5, k6[, s1, s2, s3, s4[, tx, ty]]]])``. The tilted-sensor
         terms ``tx, ty`` of the 14-vector must be 0: camkit does not model a tilted sensor.
+        None or an empty vector is no distortion, as OpenCV takes it (a ROS camera_info of
+        rectified images writes ``D: []``).
     width, height : int
 
     Note that ``cv2.projectPoints`` ignores ``K[0, 1]``; camkit keeps it as ``skew``.
@@ -51,11 +54,13 @@ def from_opencv(K: Any, dist: Any, *, width: int, height: int) -> BrownConrady:
     >>> to_opencv(cam)[1]
     array([-0.2  ,  0.05 ,  0.001, -0.002,  0.01 ])
     """
-    d = as_real_array(dist, "dist")
+    d = np.zeros(4) if dist is None else as_real_array(dist, "dist")
+    if d.size == 0:
+        d = np.zeros(4)
     if d.ndim > 1 and sum(s != 1 for s in d.shape) <= 1:
         d = d.ravel()
     if d.ndim != 1 or d.size not in (4, 5, 8, 12, 14):
-        raise ShapeError(f"dist: expected 4, 5, 8, 12 or 14 coefficients, got shape {np.shape(dist)}")
+        raise ShapeError(f"dist: expected 4, 5, 8, 12 or 14 coefficients, or none, got shape {np.shape(dist)}")
     if not np.isfinite(d).all():
         raise ParameterError(f"dist: expected finite values, got {d.tolist()}")
     if d.size == 14:

@@ -100,6 +100,17 @@ distortion_coefficients:
     assert isinstance(cam, BrownConrady) and cam.fx == 430.21555 and cam.k1 == -0.337586 and cam.width == 640
 
 
+def test_ros_camera_info_of_rectified_images_has_no_distortion(tmp_path):
+    """A camera_info for rectified images (or a simulator's) writes an empty D: no distortion,
+    as ROS and OpenCV take it (it was refused as 'expected 4, 5, 8, 12 or 14 coefficients')."""
+    p = tmp_path / "rect.yaml"
+    p.write_text("image_width: 640\nimage_height: 480\ncamera_matrix:\n  rows: 3\n  cols: 3\n"
+                 "  data: [500, 0, 320, 0, 500, 240, 0, 0, 1]\ndistortion_model: plumb_bob\n"
+                 "distortion_coefficients:\n  rows: 1\n  cols: 0\n  data: []\n")
+    cam = read_opencv_yaml(p)
+    assert isinstance(cam, BrownConrady) and cam.fx == 500.0 and not cam.params()[5:].any()
+
+
 def test_yaml_malformed(tmp_path):
     p = tmp_path / "bad.yaml"
     for text, needle in [("image_width: 640\n", "image_height"),

@@ -60,6 +60,10 @@ def test_converters_round_trip():
     assert from_opencv_fisheye(Kf, D, width=640, height=480) == fish
     assert from_opencv(K, np.r_[DIST[12], 0.0, 0.0], width=640, height=480) == from_opencv(
         K, DIST[12], width=640, height=480)
+    # No distortion vector, as OpenCV's functions take None or an empty one.
+    plain = from_opencv(K, np.zeros(4), width=640, height=480)
+    assert from_opencv(K, None, width=640, height=480) == plain == from_opencv(K, np.zeros((1, 0)), width=640,
+                                                                            height=480)
 
 
 @pytest.mark.parametrize(
