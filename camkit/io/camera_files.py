@@ -245,6 +245,9 @@ _COLMAP = {"SIMPLE_PINHOLE": (), "PINHOLE": (), "SIMPLE_RADIAL": ("k1",), "RADIA
            "OPENCV": ("k1", "k2", "p1", "p2"), "FULL_OPENCV": ("k1", "k2", "p1", "p2", "k3", "k4", "k5", "k6"),
            "SIMPLE_RADIAL_FISHEYE": ("k1",), "RADIAL_FISHEYE": ("k1", "k2"),
            "OPENCV_FISHEYE": ("k1", "k2", "k3", "k4")}
+# The models with one focal length, f (COLMAP's src/colmap/sensor/models.h): RADIAL and
+# RADIAL_FISHEYE too, "f, cx, cy, k1, k2".
+_COLMAP_ONE_FOCAL = ("SIMPLE_PINHOLE", "SIMPLE_RADIAL", "RADIAL", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE")
 
 
 def write_colmap_cameras(path: str | os.PathLike, models: list[CameraModel]) -> Path:
@@ -301,7 +304,7 @@ def read_colmap_cameras(path: str | os.PathLike) -> dict[int, CameraModel]:
         except ValueError:
             raise ParameterError(f"{where}: line {n}: expected integers and numbers, got {line!r}") from None
         dist = _COLMAP[name]
-        n_f = 1 if name.startswith("SIMPLE") else 2
+        n_f = 1 if name in _COLMAP_ONE_FOCAL else 2
         if len(p) != n_f + 2 + len(dist):
             raise ParameterError(f"{where}: line {n}: {name} takes {n_f + 2 + len(dist)} parameters, got {len(p)}")
         fx, fy = (p[0], p[0]) if n_f == 1 else (p[0], p[1])

@@ -170,6 +170,14 @@ def test_colmap_simple_models_and_errors(tmp_path):
     cams = read_colmap_cameras(p)
     assert isinstance(cams[1], BrownConrady) and cams[1].fx == cams[1].fy == 500.0 and cams[1].cx == 320.0
     assert cams[1].k1 == -0.1 and isinstance(cams[2], Pinhole)
+    # RADIAL and RADIAL_FISHEYE have one focal length too: "f, cx, cy, k1, k2" (COLMAP's
+    # sensor/models.h); they were read as six parameters and refused.
+    p.write_text("3 RADIAL 3072 2304 2559.81 1536 1152 -0.0205 0.001\n"
+                 "4 RADIAL_FISHEYE 640 480 300 320.5 240.5 0.02 -0.003\n")
+    cams = read_colmap_cameras(p)
+    assert isinstance(cams[3], BrownConrady) and cams[3].fx == cams[3].fy == 2559.81 and cams[3].cx == 1535.5
+    assert (cams[3].k1, cams[3].k2) == (-0.0205, 0.001)
+    assert isinstance(cams[4], KannalaBrandt) and cams[4].fy == 300.0 and (cams[4].k1, cams[4].k2) == (0.02, -0.003)
     p.write_text("1 THIN_PRISM_FISHEYE 640 480 1 2 3 4 5 6 7 8 9 10 11 12\n")
     with pytest.raises(ParameterError, match="COLMAP model THIN_PRISM_FISHEYE has no camkit form"):
         read_colmap_cameras(p)
