@@ -194,7 +194,7 @@ def as_image(img: Any, name: str, *, max_channels: int = 4) -> np.ndarray:
         )
     if img.shape[0] < 1 or img.shape[1] < 1:
         raise ShapeError(f"{name}: expected a non-empty image, got shape {img.shape}")
-    if not img.dtype.isnative:   # big-endian data (FITS, some TIFFs): the kernels read native order
+    if not img.dtype.isnative:   # big-endian data (FITS, np.frombuffer(..., '>u2')): kernels read native order
         img = img.astype(img.dtype.newbyteorder("="))
     return img
 

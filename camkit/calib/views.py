@@ -81,6 +81,11 @@ class ViewsProblem:
         return ViewsState(p, matrix_from_rvec(d_local[:, :3]) @ state.Rs, state.ts + d_local[:, 3:])
 
 
+def _unstack(x: Any) -> Any:
+    """A stacked (V, N, k) array as the list of its views (as OpenCV takes them); else ``x``."""
+    return list(x) if isinstance(x, np.ndarray) and x.ndim == 3 else x
+
+
 def _kind(x: Any) -> str:
     return f"an array of shape {x.shape}" if isinstance(x, np.ndarray) else type(x).__name__
 
@@ -89,11 +94,7 @@ def as_views(object_points: Any, image_points: Any) -> tuple[list[np.ndarray], l
     """The views as lists of (N, 3) planar object points and (N, 2) pixels (NaN rows: not
     seen), checked. Views with the same number of points may also come stacked, as (V, N, 3)
     and (V, N, 2) arrays."""
-    # A stacked array is a list of its views (as OpenCV takes them).
-    object_points = list(object_points) if isinstance(object_points, np.ndarray) and object_points.ndim == 3 \
-        else object_points
-    image_points = list(image_points) if isinstance(image_points, np.ndarray) and image_points.ndim == 3 \
-        else image_points
+    object_points, image_points = _unstack(object_points), _unstack(image_points)
     if not isinstance(object_points, list | tuple) or not isinstance(image_points, list | tuple):
         raise ShapeError("object_points, image_points: expected lists with one array per view, or (V, N, 3) and "
                          f"(V, N, 2) arrays, got {_kind(object_points)} and {_kind(image_points)}")
