@@ -15,7 +15,13 @@ def _umask() -> int:
 
 def write_atomic(path: str | os.PathLike, data: bytes) -> Path:
     target = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", dir=target.parent)
+    except OSError as exc:
+        # mkstemp's message names the temporary file, which the caller never asked for.
+        why = (f"the folder {target.parent} does not exist" if not target.parent.is_dir()
+               else f"the folder {target.parent} is not writable ({exc.strerror})")
+        raise type(exc)(exc.errno, f"{target}: cannot write: {why}") from None
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)

@@ -38,6 +38,16 @@ def test_replaces_atomically_and_leaves_no_temporary(tmp_path):
     assert (p.stat().st_mode & 0o777) == 0o666 & ~_umask()
 
 
+def test_a_missing_folder_is_named_not_the_temporary_file(tmp_path):
+    """The write goes through a temporary file beside the target; where the folder does not
+    exist, the error names the file asked for and its folder (it named the temporary file)."""
+    target = tmp_path / "absent" / "x.png"
+    with pytest.raises(FileNotFoundError, match=rf"{target}: cannot write: the folder {target.parent} does not "
+                                                r"exist$") as info:
+        write_png(target, np.zeros((4, 4), np.uint8))
+    assert ".x.png." not in str(info.value)
+
+
 def _umask():
     m = os.umask(0)
     os.umask(m)
