@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from pathlib import Path
 from typing import Any
 
@@ -74,9 +75,28 @@ def model_from_dict(d: Any, where: str = "model") -> CameraModel:
     return cls(**kwargs)
 
 
+#: The largest camera or rig file read (bytes): COLMAP's cameras.txt for ten thousand cameras
+#: is about a megabyte; a larger file is not one of these, and is not read whole into memory.
+MAX_CAMERA_FILE_BYTES = 64 * 1024 * 1024
+
+
 def _read_text(path: str | os.PathLike) -> str:
+    """The text of a camera or rig file, after checking that it is a regular file of at most
+    :data:`MAX_CAMERA_FILE_BYTES` (a FIFO would block forever, /dev/zero fill the memory)."""
+    p = Path(path)
     try:
-        return Path(path).read_text(encoding="utf-8")
+        st = p.stat()
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read the camera file ({exc.strerror or exc})") from None
+    if not stat.S_ISREG(st.st_mode):
+        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise ParameterError(f"{path}: expected a file, got {kind}")
+    if st.st_size > MAX_CAMERA_FILE_BYTES:
+        limit = MAX_CAMERA_FILE_BYTES // 2**20
+        raise ParameterError(f"{path}: expected a camera or rig file of at most {limit} MB, got "
+                             f"{st.st_size / 2**20:.0f} MB")
+    try:
+        return p.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise ParameterError(f"{path}: not a camera file (not text)") from None
     except OSError as exc:

@@ -111,6 +111,38 @@ def test_ros_camera_info_of_rectified_images_has_no_distortion(tmp_path):
     assert isinstance(cam, BrownConrady) and cam.fx == 500.0 and not cam.params()[5:].any()
 
 
+def test_a_fifo_a_folder_or_a_huge_file_is_refused_before_reading(tmp_path):
+    """A camera or rig path that is not a regular file is refused at once: a named pipe made
+    read_camera wait forever for a writer, and a huge file was read whole into memory."""
+    import os
+    import threading
+
+    from camkit.io import read_rig
+
+    fifo = tmp_path / "camera.yaml"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.json"
+    with open(big, "wb") as f:
+        f.truncate(65 * 2**20)  # sparse: nothing written
+    errors = {}
+
+    def attempt():
+        for name, path in (("fifo", fifo), ("folder", tmp_path), ("big", big)):
+            for read in (read_camera, read_rig):
+                try:
+                    read(path)
+                except ParameterError as exc:
+                    errors[name, read.__name__] = str(exc)
+
+    t = threading.Thread(target=attempt, daemon=True)
+    t.start()
+    t.join(10)
+    assert not t.is_alive(), "reading a named pipe as a camera file blocked"
+    assert errors["fifo", "read_camera"] == errors["fifo", "read_rig"] == f"{fifo}: expected a file, got not a regular file"
+    assert errors["folder", "read_camera"] == f"{tmp_path}: expected a file, got a folder"
+    assert errors["big", "read_rig"] == f"{big}: expected a camera or rig file of at most 64 MB, got 65 MB"
+
+
 def test_yaml_malformed(tmp_path):
     p = tmp_path / "bad.yaml"
     for text, needle in [("image_width: 640\n", "image_height"),
