@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import json
 import os
-import stat
 from pathlib import Path
 from typing import Any
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from camkit._atomic import write_atomic
 from camkit.errors import ParameterError
+from camkit.io._files import regular_file_size
 from camkit.lens.base import MODELS, CameraModel
 from camkit.lens.brown_conrady import BrownConrady
 from camkit.lens.kannala_brandt import KannalaBrandt
@@ -84,17 +84,11 @@ def _read_text(path: str | os.PathLike) -> str:
     """The text of a camera or rig file, after checking that it is a regular file of at most
     :data:`MAX_CAMERA_FILE_BYTES` (a FIFO would block forever, /dev/zero fill the memory)."""
     p = Path(path)
-    try:
-        st = p.stat()
-    except OSError as exc:
-        raise ParameterError(f"{path}: cannot read the camera file ({exc.strerror or exc})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
-        raise ParameterError(f"{path}: expected a file, got {kind}")
-    if st.st_size > MAX_CAMERA_FILE_BYTES:
+    size = regular_file_size(p, ParameterError, "a file", "camera file")
+    if size > MAX_CAMERA_FILE_BYTES:
         limit = MAX_CAMERA_FILE_BYTES // 2**20
         raise ParameterError(f"{path}: expected a camera or rig file of at most {limit} MB, got "
-                             f"{st.st_size / 2**20:.0f} MB")
+                             f"{size / 2**20:.0f} MB")
     try:
         return p.read_text(encoding="utf-8")
     except UnicodeDecodeError:

@@ -18,7 +18,6 @@ from __future__ import annotations
 import hashlib
 import io
 import os
-import stat
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -29,6 +28,7 @@ from camkit._atomic import write_atomic
 from camkit._repr import summary_repr
 from camkit._validate import as_image, as_positive_int
 from camkit.errors import ImageFileError, ParameterError, ShapeError
+from camkit.io._files import regular_file_size
 
 __all__ = [
     "DEFAULT_MAX_PIXELS",
@@ -169,14 +169,7 @@ def _as_path(path: Any, name: str = "path") -> Path:
 
 def _read_bytes(p: Path) -> bytes:
     """The whole file, after checking that it is a regular file (a FIFO would block forever)."""
-    try:
-        st = p.stat()
-    except OSError as exc:
-        raise ImageFileError(f"{p}: cannot read the file ({exc.strerror or exc})") from None
-    if not stat.S_ISREG(st.st_mode):
-        kind = "a folder" if stat.S_ISDIR(st.st_mode) else "not a regular file"
-        raise ImageFileError(f"{p}: expected an image file, got {kind}")
-    if st.st_size == 0:
+    if regular_file_size(p, ImageFileError, "an image file") == 0:
         raise ImageFileError(f"{p}: the file is empty (0 bytes)")
     try:
         return p.read_bytes()
