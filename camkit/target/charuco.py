@@ -482,33 +482,9 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
         out[c[poor]] = np.nan
         sig[c[poor]] = np.nan
     _from_homographies(board, full, level, factor, out, sig, win_of, sm_of, res_of, typical)
-    # A corner beside markers whose fit found no saddle near its markers' prediction, and that
-    # nothing later found: searched for first with a window of a third of its clearance from
-    # the markers and as much smoothing as keeps clear of them too (a twelfth of the square at
-    # most), then refined and held to the tests of growth's corners (_place_corners). On large
-    # squares through a fisheye the markers predict it a few pixels off, beyond the fine fit's
-    # window of at most 5 px, and growth's parallelogram further (corpus view 1521, squares
-    # of 190-270 px, markers 50 px away: 4.8 and 5.8 px off, growth's 21 and 38 px); growth's
-    # own coarse search, a twelfth of the square's smoothing, would reach the markers.
-    missing = lost & ~np.isfinite(out[cand]).all(axis=1)
-    if missing.any():
-        k = np.flatnonzero(missing)
-        sz = size[cand[k]]
-        rk = np.clip(np.floor(clear[k] / 3.0), 0, 25).astype(int)
-        smk = np.minimum((clear[k] - rk) / 2.5, sz / 12.0)
-        go = (rk >= 2) & (smk >= _FULL_SMOOTHING * factor)
-        start = np.full((len(k), 2), np.nan)
-        for r in np.unique(rk[go]):
-            g = np.flatnonzero(go & (rk == r))
-            steps = int(np.clip(np.ceil(0.1 * sz[g].max()), 6, 25))
-            q, _ = refine_patches(full, pred[k[g]], int(r), float(smk[g].min()), iters=steps)
-            near = np.hypot(*(q - pred[k[g]]).T) <= 0.1 * sz[g]
-            start[g[near]] = q[near]
-        k, start = k[np.isfinite(start).all(axis=1)], start[np.isfinite(start).all(axis=1)]
-        if len(k):
-            others = np.stack([pred[k] + u[k], pred[k] - u[k], pred[k] + v[k], pred[k] - v[k]], axis=1)
-            _place_corners(board, full, level, factor, cand[k], pred[k], size[cand[k]], out, sig, others, u[k],
-                           v[k], win_of, sm_of, res_of, typical, start)
+    # 7. Corners beside markers that their markers predict beyond the fine fit's reach.
+    _from_wider_search(board, full, level, factor, cand[lost], pred[lost], size[cand[lost]], clear[lost], u[lost],
+                       v[lost], out, sig, win_of, sm_of, res_of, typical)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -517,6 +493,42 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(confirmed)} markers (window {window} px)")
 
+
+
+def _from_wider_search(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, cand: np.ndarray,
+                       pred: np.ndarray, size: np.ndarray, clear: np.ndarray, u: np.ndarray, v: np.ndarray,
+                       out: np.ndarray, sig: np.ndarray, win_of: np.ndarray, sm_of: np.ndarray,
+                       res_of: np.ndarray, typical: TypicalSigma) -> None:
+    """Step 7: the corners ``cand`` beside markers whose fit found no saddle near their markers'
+    prediction ``pred`` (squares of ``size`` px, ``clear`` px from the markers, a square's
+    steps ``u``, ``v``), those still not found (``out`` NaN), searched for first with a window
+    of a third of the clearance and as much smoothing as keeps clear of the markers too (a
+    twelfth of the square at most), ending at most a tenth of a square from the prediction;
+    then refined and held to the tests of growth's corners (:func:`_place_corners`, the
+    neighbours' places a square either way). On large squares through a fisheye the markers
+    predict such a corner a few pixels off, beyond the fine fit's window of at most 5 px, and
+    growth's parallelogram further (corpus view 1521, squares of 190-270 px, markers 50 px away:
+    4.8 and 5.8 px off, growth's 21 and 38 px); growth's own coarse search, a twelfth of the
+    square's smoothing, would reach the markers."""
+    k = np.flatnonzero(~np.isfinite(out[cand]).all(axis=1))
+    if not len(k):
+        return
+    rk = np.clip(np.floor(clear[k] / 3.0), 0, 25).astype(int)
+    smk = np.minimum((clear[k] - rk) / 2.5, size[k] / 12.0)
+    go = (rk >= 2) & (smk >= _FULL_SMOOTHING * factor)
+    start = np.full((len(k), 2), np.nan)
+    for r in np.unique(rk[go]):
+        g = np.flatnonzero(go & (rk == r))
+        steps = int(np.clip(np.ceil(0.1 * size[k[g]].max()), 6, 25))
+        q, _ = refine_patches(full, pred[k[g]], int(r), float(smk[g].min()), iters=steps)
+        near = np.hypot(*(q - pred[k[g]]).T) <= 0.1 * size[k[g]]
+        start[g[near]] = q[near]
+    ok = np.isfinite(start).all(axis=1)
+    k, start = k[ok], start[ok]
+    if len(k):
+        others = np.stack([pred[k] + u[k], pred[k] - u[k], pred[k] + v[k], pred[k] - v[k]], axis=1)
+        _place_corners(board, full, level, factor, cand[k], pred[k], size[k], out, sig, others, u[k], v[k],
+                       win_of, sm_of, res_of, typical, start)
 
 
 def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, noise: float,
