@@ -103,13 +103,15 @@ def test_truncated_real_files(tmp_path):
         p = tmp_path / name
         save(p)
         p.write_bytes(p.read_bytes()[: len(p.read_bytes()) * 2 // 3])
-        with pytest.raises(ImageFileError, match=r"damaged"):
-            read_image(p)
+        for read in (read_image, read_image_and_info):
+            with pytest.raises(ImageFileError, match=r"damaged"):
+                read(p)
 
 
 def test_missing_file(tmp_path):
-    with pytest.raises(ImageFileError, match=r"nope\.png: cannot read the file"):
-        read_image(tmp_path / "nope.png")
+    for read in (read_image, read_image_and_info):
+        with pytest.raises(ImageFileError, match=r"nope\.png: cannot read the file"):
+            read(tmp_path / "nope.png")
 
 
 def test_tiled_tiff_built_by_hand(tmp_path):
