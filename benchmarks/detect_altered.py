@@ -4,8 +4,9 @@ detector has not seen in that form.
 Every photo of ``../shared/data/real_boards`` whose board OpenCV found (``reference.json``) is
 turned a quarter, shrunk to a half or a third (box filter), enlarged 2x or 3x (bicubic),
 compressed as JPEG at quality 25, darkened to a fifth with noise, flattened to a quarter of
-its contrast with noise, blurred (Gaussian, 2 px), or lit by a ramp from 0.15 to 1 across its
-width. The reference corners follow the same map. On each altered photo:
+its contrast with noise, blurred (Gaussian, 2 px), lit by a ramp from 0.15 to 1 across its
+width, or put half in a shadow (the right half dimmed to a fifth past a soft edge). The
+reference corners follow the same map. On each altered photo:
 
 - OpenCV: whether ``findChessboardCornersSB`` (exhaustive, accuracy) or, up to 4 MP, the classic
   ``findChessboardCorners`` still finds the board;
@@ -84,6 +85,14 @@ def _ramp(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _u8(img.astype(np.float64) * (g[..., None] if img.ndim == 3 else g)), pts
 
 
+def _shadow(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The right half in a shadow: dimmed to a fifth past a soft edge (a fortieth of the width)
+    down the middle."""
+    w = img.shape[1]
+    g = (0.2 + 0.8 / (1.0 + np.exp((np.arange(w) - 0.5 * w) / (w / 40.0))))[None, :]
+    return _u8(img.astype(np.float64) * (g[..., None] if img.ndim == 3 else g)), pts
+
+
 ALTERATIONS: dict[str, Alteration] = {
     "as is": lambda i, p: (i, p),
     "turned 90": lambda i, p: _turn(i, p, 1),
@@ -97,6 +106,7 @@ ALTERATIONS: dict[str, Alteration] = {
     "flat": lambda i, p: (_noisy(i, 0.25, 128.0, 1.5), p),
     "blur 2": lambda i, p: _blur(i, p, 2.0),
     "ramp": _ramp,
+    "shadow": _shadow,
 }
 
 

@@ -121,6 +121,13 @@ _RESPONSE_FLOORS = (0.02, 0.05, 0.1, 0.2, 0.4)
 #: of the range under JPEG), its weakest corners are too poor to place (rendered corpus view 68:
 #: a board 15 grey levels deep at JPEG quality 67, its weakest corners up to 1.2 px off).
 _STRONG_RESPONSE = 0.05
+#: Growth may take X-corners down to this fraction of the full contrast floor
+#: (:data:`_MIN_CONTRAST`; a board's half in a shadow: its corners a fifth as deep as the lit
+#: half's); only those over the floor seed it. Where the floor is already lowered that far (a
+#: faint board: backlit, or a tenth of the range), growth takes none under it: such a board's
+#: faintest corners are too poor to place (rendered corpus view 68, 15 grey levels deep under
+#: JPEG: a corner 1.2 px off).
+_WEAK_CONTRAST = 0.3
 #: The saddle fit's window half-size is the corner spacing over this (2 to 5 px).
 _SPACING_PER_WINDOW = 11.0
 
@@ -321,7 +328,7 @@ def _saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int = 6,
 
 
 def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray, contrast: np.ndarray,
-              offset: float = 0.3) -> list[tuple[np.ndarray, np.ndarray]]:
+              offset: float = 0.3, seeds: np.ndarray | None = None) -> list[tuple[np.ndarray, np.ndarray]]:
     """The corners' lattices: grown (:func:`camkit._kernels.lattice.grow`) from the corners in
     turn, most central first; corners in a grown lattice seed no other. Growth stays within
     ``max_side + 2`` positions of its seed either way (a lattice that reaches that far is
@@ -330,6 +337,8 @@ def _assemble(pts: np.ndarray, max_side: int, img: np.ndarray, contrast: np.ndar
     hold markers). Returns (indices into pts, lattice coordinates from 0) for each lattice,
     largest first."""
     order = np.argsort(np.hypot(*(pts - np.median(pts, axis=0)).T), kind="stable")
+    if seeds is not None:  # only these seed a lattice; growth may take any
+        order = order[seeds[order]]
     side = 2 * (max_side + 2) + 1
     owner = np.empty(len(pts), dtype=np.int64)
     coord = np.empty((len(pts), 2), dtype=np.int64)
@@ -360,7 +369,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        (1st to 99th percentile), or, where the X-like points are fainter (a board in shade
        beside a bright window), 0.3 of their 90th percentile contrast; ten times the smoothed
        image's noise at least.
-    2. Lattice: grown from a seed corner with a row and a column through it: two pairs of
+    2. Lattice: grown from a seed corner (an X-corner of step 1; growth may also take X-corners
+       down to 0.3 of the full contrast floor, such as the corners of a board's half in a shadow)
+       with a row and a column through it: two pairs of
        its nearest corners, each pair nearly opposite through it, whose four links run along
        edges (a quarter, half and three quarters along each link the squares either side
        differ, the same way round: a diagonal link, a link two steps long and a sheared one
@@ -429,8 +440,10 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        inner_rows`` odd) they decide it, with square (0, 0) black as :class:`Checkerboard`
        defines it; otherwise either print (black or white corner squares) is accepted and
        corner (0, 0) is the end nearer the image's top-left, as OpenCV leaves it. A square
-       board's quarter-turn follows its colours the same way. Labels whose colours disagree
-       (under 80 % of the probed squares) are not returned.
+       board's quarter-turn follows its colours the same way. Each colour is read against the
+       corner's own squares (its two diagonals' squares compared, half a step out), so that a
+       shadow over part of the board does not turn its white squares black. Labels whose
+       colours disagree (under 80 % of the probed corners) are not returned.
     7. Scale: where the board was not found, or found with corners missing and squares of 40 px
        or more, steps 1-6 run again on the image halved (2x2 means), and again, as long as the
        smaller side keeps 120 px; the corners found at a level are refined on the full image
@@ -1629,12 +1642,13 @@ def _symmetric(grey: np.ndarray, corners: np.ndarray, sigma: np.ndarray, noise_s
     return out, sig
 
 
-def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray,
-                                                                      np.ndarray, float, str]:
+def _x_corners(grey: np.ndarray, noise: float | None = None, weak: bool = False) -> tuple:
     """Step 1 of :func:`detect_corners` on one resolution: ``(smoothed image, saddle response,
     X-corners (K, 2) integer pixels, their profiles (K, 32), symmetry (K,), the contrast floor,
     why none)``; ``why`` is "" where candidates were found (``noise``: the image's, where
-    already measured)."""
+    already measured). ``weak``: the X-corners under the contrast floor but over
+    :data:`_WEAK_CONTRAST` of the full one (and the noise's floor) are returned too, and an
+    eighth output says which candidates pass the floor (only those seed a lattice)."""
     s = np.empty_like(grey)
     detect_kernels.gaussian_blur(grey, _SIGMA, s)
     R = np.empty_like(s)
@@ -1656,8 +1670,13 @@ def _x_corners(grey: np.ndarray, noise: float | None = None) -> tuple[np.ndarray
     strong = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)] > _STRONG_RESPONSE * rmax
     noise = _image_noise(grey) if noise is None else noise
     min_contrast = _contrast_floor(contrast[shape & strong], noise / (2.0 * np.sqrt(np.pi) * _SIGMA))
-    ok = shape & (contrast > np.where(strong, min_contrast, max(min_contrast, _MIN_CONTRAST)))
-    return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
+    floor = np.where(strong, min_contrast, max(min_contrast, _MIN_CONTRAST))
+    ok = shape & (contrast > floor)
+    if not weak:
+        return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
+    low = ok | (shape & (contrast > max(_WEAK_CONTRAST * _MIN_CONTRAST,
+                                          _NOISE_FACTOR * noise / (2.0 * np.sqrt(np.pi) * _SIGMA))))
+    return s, R, pts[low], v[low], sym[low], min_contrast, "", ok[low]
 
 
 def _lattices(grey: np.ndarray, max_side: int,
@@ -1688,18 +1707,20 @@ def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -
     def fail(msg: str, window: int = 0) -> Detection:
         return Detection.not_found(n_corners, msg, window)
 
-    s, R, pts, v, sym, min_contrast, why = _x_corners(grey, noise)
+    found = _x_corners(grey, noise, weak=True)
+    s, R, pts, v, sym, min_contrast, why = found[:7]
     if why:
         return fail(why)
-    if len(pts) < min(4, n_corners):
-        return fail(f"not found: {len(pts)} X-corners")
+    seeds = found[7]
+    if seeds.sum() < min(4, n_corners):
+        return fail(f"not found: {int(seeds.sum())} X-corners")
     strength = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)]
     if len(pts) > max(3 * n_corners, 500):  # clutter or noise: keep the strongest (bounds the time)
-        keep = np.argsort(-strength)[:max(3 * n_corners, 500)]
-        pts, v, sym = pts[keep], v[keep], sym[keep]
+        keep = np.argsort(-(strength + np.where(seeds, strength.max(), 0.0)))[:max(3 * n_corners, 500)]
+        pts, v, sym, seeds = pts[keep], v[keep], sym[keep], seeds[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
-    lattices = _assemble(pts, max(cols, rows), s, v.max(axis=1) - v.min(axis=1))
+    lattices = _assemble(pts, max(cols, rows), s, v.max(axis=1) - v.min(axis=1), seeds=seeds)
     if not lattices or len(lattices[0][0]) < 4:
         return fail("not found: the corners form no lattice")
     # Each lattice of half the largest's size or more is checked and labelled in turn. Where
@@ -1743,7 +1764,7 @@ def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -
         # (:data:`_STRONG_RESPONSE`) are not counted (X-like points along a shelf's lit edges
         # past a board that fills the frame: real plantcv_wide set, at the 1/4 level).
         strong = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)] > _STRONG_RESPONSE * float(R.max())
-        stray = (near > 1.5 * spacing) & (contrast >= 0.5 * np.median(contrast[on_board])) & strong \
+        stray = (near > 1.5 * spacing) & (contrast >= 0.5 * np.median(contrast[on_board])) & strong & seeds \
             if on_board.any() else np.zeros(len(pts), dtype=bool)
         # Only strays in a pattern count: each with two others 0.3 to 3 board steps away (the
         # scattered X-like points of a cluttered scene have none).
@@ -2460,17 +2481,33 @@ def _place(ext: np.ndarray, tgt: tuple[int, int], sides: dict) -> tuple[tuple[in
 
 
 def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | None:
-    """Fraction of the probed squares whose shade matches Checkerboard's colours for the
-    labels ``g``: from each corner (a, b) whose diagonal neighbour (a + 1, b + 1) is seen,
-    half a diagonal step the other way lies in square (a - 1, b - 1), black when a + b is
-    even. Local probes: perspective and distortion cannot move them off their square."""
+    """Fraction of the probed corners whose squares' shades match Checkerboard's colours for
+    the labels ``g``: at each corner (a, b) whose neighbours (a + 1, b + 1), (a + 1, b) and
+    (a, b + 1) are seen, the two squares on its diagonal through (a - 1, b - 1), black when
+    a + b is even, against the two on its other diagonal, half a step out along each. Each
+    corner's squares are compared with each other, not with a level for the whole board: a
+    shadow over part of the board, or a light's fall-off, dims both pairs alike (real photos
+    half in shadow: their shaded white squares read as darker than the lit black ones). Where
+    fewer than two corners have those neighbours, each square probed on the first diagonal is
+    read against the middle of all those shades."""
     G = _grid(g - g.min(axis=0), margin=1)
     here, diag = G[:-1, :-1], G[1:, 1:]
+    right, down = G[1:, :-1], G[:-1, 1:]
     both = (here >= 0) & (diag >= 0)
     if both.sum() < 2:
         return None
+    full = both & (right >= 0) & (down >= 0)
     k, j = here[both], diag[both]
-    probe = np.ascontiguousarray(q[k] + 0.5 * (q[k] - q[j]), dtype=np.float64)
+    d = q[j] - q[k]
+    if full.sum() >= 2:
+        k, j, e1, e2 = here[full], diag[full], right[full], down[full]
+        d, e = q[j] - q[k], q[e1] - q[e2]
+        probe = np.ascontiguousarray(np.concatenate([q[k] - 0.5 * d, q[k] + 0.5 * d, q[k] + 0.5 * e, q[k] - 0.5 * e]),
+                                     dtype=np.float64)
+        shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear").reshape(4, -1)
+        first = shade[0] + shade[1] < shade[2] + shade[3]
+        return float(np.mean(first == ((g[k, 0] + g[k, 1]) % 2 == 0)))
+    probe = np.ascontiguousarray(q[k] - 0.5 * d, dtype=np.float64)
     shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear")
     mid = 0.5 * (shade.max() + shade.min())
     return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
