@@ -123,10 +123,11 @@ _RESPONSE_FLOORS = (0.02, 0.05, 0.1, 0.2, 0.4)
 _STRONG_RESPONSE = 0.05
 #: Growth may take X-corners down to this fraction of the full contrast floor
 #: (:data:`_MIN_CONTRAST`; a board's half in a shadow: its corners a fifth as deep as the lit
-#: half's); only those over the floor seed it. Where the floor is already lowered that far (a
-#: faint board: backlit, or a tenth of the range), growth takes none under it: such a board's
-#: faintest corners are too poor to place (rendered corpus view 68, 15 grey levels deep under
-#: JPEG: a corner 1.2 px off).
+#: half's); only those over the floor seed it. Only where the floor is the full one (the image
+#: holds X-corners of full contrast: the lit half): where it is lowered for faint X-like
+#: points, the fainter ones are poorly placed corners or artefacts (rendered corpus view 68, a
+#: board 15 grey levels deep under JPEG: a corner 1.2 px off; probe view 3046, a small board
+#: smeared by a 20 px motion blur: a lattice of 45 points between its corners).
 _WEAK_CONTRAST = 0.3
 #: The saddle fit's window half-size is the corner spacing over this (2 to 5 px).
 _SPACING_PER_WINDOW = 11.0
@@ -370,7 +371,8 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        beside a bright window), 0.3 of their 90th percentile contrast; ten times the smoothed
        image's noise at least.
     2. Lattice: grown from a seed corner (an X-corner of step 1; growth may also take X-corners
-       down to 0.3 of the full contrast floor, such as the corners of a board's half in a shadow)
+       down to 0.3 of the contrast floor where that is the full one, such as the corners of a
+       board's half in a shadow)
        with a row and a column through it: two pairs of
        its nearest corners, each pair nearly opposite through it, whose four links run along
        edges (a quarter, half and three quarters along each link the squares either side
@@ -451,7 +453,9 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
        corners) and tested there for point symmetry again, also against the board's own
        corners (over four times their median asymmetry, where that passes 0.05, is not a
        clean junction: an occluder's edge that the coarse level's circle blurred). The level
-       that labels the most corners wins (the finest on a tie).
+       that labels the most corners wins (the finest on a tie). Where the board is found whole
+       at full resolution but step 9 drops every corner as too uncertain (a screen's pixel
+       grid, heavy noise), the coarser levels, which average that out, are looked at then.
        Squares from about 10 px to the whole frame thus meet the detector at 10-40 px.
     8. Noise: each corner's sigma is the larger of the fit's (from its residuals) and the
        image noise's (:func:`_noise_sigma`: the noise measured in the light squares' middles,
@@ -511,7 +515,28 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
         raise ParameterError(f"board: expected a Checkerboard, got {type(board).__name__}")
     grey, step = _to_grey(image, with_step=True)
     noise = _image_noise(grey)
-    best = _detect(grey, board, noise)
+    best, best_factor = _coarser_levels(grey, board, _detect(grey, board, noise))
+    if not best.found:
+        return best
+    result = _drop_noisy(grey, best, board, best_factor, noise, step)
+    if not result.found and best_factor == 1:
+        # Every corner found at full resolution too uncertain to keep (a screen's pixel grid,
+        # heavy noise): the coarser levels, which average it out, were not looked at, as the
+        # board was whole there. Look at them now.
+        again, factor = _coarser_levels(grey, board, Detection.not_found(len(best.corners), result.message,
+                                                                          best.window_px))
+        if again.found:
+            retry = _drop_noisy(grey, again, board, factor, noise, step)
+            if retry.found:
+                return retry
+    return result
+
+
+def _coarser_levels(grey: np.ndarray, board: Checkerboard, best: Detection) -> tuple[Detection, int]:
+    """Step 7 of :func:`detect_corners`: from ``best`` (the full resolution's detection), the
+    coarser levels while the board is not found, or found with corners missing and squares of
+    ``_COARSER_FROM_PX`` or more; returns the detection that labels most corners (refined at
+    full resolution) and its level's factor."""
     level = grey
     factor = best_factor = 1
     n_corners = board.inner_cols * board.inner_rows
@@ -527,7 +552,7 @@ def detect_corners(image: np.ndarray, board: Checkerboard) -> Detection:
             full = _refine_full(grey, coarse, factor, board)
             if full.found and (not best.found or full.n_found > best.n_found):
                 best, best_factor = full, factor
-    return _drop_noisy(grey, best, board, best_factor, noise, step) if best.found else best
+    return best, best_factor
 
 
 #: The pyramid stops before an image side falls under this many pixels.
@@ -1646,9 +1671,9 @@ def _x_corners(grey: np.ndarray, noise: float | None = None, weak: bool = False)
     """Step 1 of :func:`detect_corners` on one resolution: ``(smoothed image, saddle response,
     X-corners (K, 2) integer pixels, their profiles (K, 32), symmetry (K,), the contrast floor,
     why none)``; ``why`` is "" where candidates were found (``noise``: the image's, where
-    already measured). ``weak``: the X-corners under the contrast floor but over
-    :data:`_WEAK_CONTRAST` of the full one (and the noise's floor) are returned too, and an
-    eighth output says which candidates pass the floor (only those seed a lattice)."""
+    already measured). ``weak``: where the floor is the full one, the X-corners under it but
+    over :data:`_WEAK_CONTRAST` of it (and the noise's floor) are returned too, and an eighth
+    output says which candidates pass the floor (only those seed a lattice)."""
     s = np.empty_like(grey)
     detect_kernels.gaussian_blur(grey, _SIGMA, s)
     R = np.empty_like(s)
@@ -1674,8 +1699,10 @@ def _x_corners(grey: np.ndarray, noise: float | None = None, weak: bool = False)
     ok = shape & (contrast > floor)
     if not weak:
         return s, R, pts[ok], v[ok], sym[ok], min_contrast, ""
-    low = ok | (shape & (contrast > max(_WEAK_CONTRAST * _MIN_CONTRAST,
-                                          _NOISE_FACTOR * noise / (2.0 * np.sqrt(np.pi) * _SIGMA))))
+    low = ok.copy()
+    if min_contrast >= _MIN_CONTRAST:  # the full floor: the image holds X-corners of full contrast
+        low |= shape & (contrast > max(_WEAK_CONTRAST * _MIN_CONTRAST,
+                                       _NOISE_FACTOR * noise / (2.0 * np.sqrt(np.pi) * _SIGMA)))
     return s, R, pts[low], v[low], sym[low], min_contrast, "", ok[low]
 
 
