@@ -1749,7 +1749,7 @@ def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -
     strength = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)]
     if len(pts) > max(3 * n_corners, 500):  # clutter or noise: keep the strongest (bounds the time)
         keep = np.argsort(-(strength + np.where(seeds, strength.max(), 0.0)))[:max(3 * n_corners, 500)]
-        pts, v, sym, seeds = pts[keep], v[keep], sym[keep], seeds[keep]
+        pts, v, sym, seeds, strength = pts[keep], v[keep], sym[keep], seeds[keep], strength[keep]
     # Linking needs only the integer positions (+-0.5 px against the corner spacing); the
     # sub-pixel fit runs once, on the lattice's corners, below.
     lattices = _assemble(pts, max(cols, rows), s, v.max(axis=1) - v.min(axis=1), seeds=seeds)
@@ -1795,7 +1795,7 @@ def _detect(grey: np.ndarray, board: Checkerboard, noise: float | None = None) -
         # As strong in response too: the weak candidates that may only join a lattice
         # (:data:`_STRONG_RESPONSE`) are not counted (X-like points along a shelf's lit edges
         # past a board that fills the frame: real plantcv_wide set, at the 1/4 level).
-        strong = R[pts[:, 1].astype(np.int64), pts[:, 0].astype(np.int64)] > _STRONG_RESPONSE * float(R.max())
+        strong = strength > _STRONG_RESPONSE * float(R.max())
         stray = (near > 1.5 * spacing) & (contrast >= 0.5 * np.median(contrast[on_board])) & strong & seeds \
             if on_board.any() else np.zeros(len(pts), dtype=bool)
         # Only strays in a pattern count: each with two others 0.3 to 3 board steps away (the
@@ -2529,20 +2529,19 @@ def _colour_agreement(s: np.ndarray, g: np.ndarray, q: np.ndarray) -> float | No
     if both.sum() < 2:
         return None
     full = both & (right >= 0) & (down >= 0)
-    k, j = here[both], diag[both]
-    d = q[j] - q[k]
     if full.sum() >= 2:
         k, j, e1, e2 = here[full], diag[full], right[full], down[full]
         d, e = q[j] - q[k], q[e1] - q[e2]
         probe = np.ascontiguousarray(np.concatenate([q[k] - 0.5 * d, q[k] + 0.5 * d, q[k] + 0.5 * e, q[k] - 0.5 * e]),
                                      dtype=np.float64)
         shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear").reshape(4, -1)
-        first = shade[0] + shade[1] < shade[2] + shade[3]
-        return float(np.mean(first == ((g[k, 0] + g[k, 1]) % 2 == 0)))
-    probe = np.ascontiguousarray(q[k] - 0.5 * d, dtype=np.float64)
-    shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear")
-    mid = 0.5 * (shade.max() + shade.min())
-    return float(np.mean((shade < mid) == ((g[k, 0] + g[k, 1]) % 2 == 0)))
+        dark = shade[0] + shade[1] < shade[2] + shade[3]
+    else:
+        k, j = here[both], diag[both]
+        probe = np.ascontiguousarray(q[k] + 0.5 * (q[k] - q[j]), dtype=np.float64)
+        shade = _sample(s, probe[:, 0], probe[:, 1], "bilinear")
+        dark = shade < 0.5 * (shade.max() + shade.min())
+    return float(np.mean(dark == ((g[k, 0] + g[k, 1]) % 2 == 0)))
 
 
 def _bent_fraction(grid: np.ndarray) -> float:
