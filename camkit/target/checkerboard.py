@@ -851,11 +851,12 @@ def _local_steps(corners: np.ndarray, cols: int, rows: int) -> tuple[np.ndarray,
     steps = []
     for axis in (1, 0):
         fwd = np.diff(C, axis=axis)
-        pad = [(0, 0)] * 3
-        pad[axis] = (1, 0)
-        back = np.pad(fwd, pad, constant_values=np.nan)
-        pad[axis] = (0, 1)
-        ahead = np.pad(fwd, pad, constant_values=np.nan)
+        back = np.full(C.shape, np.nan)
+        ahead = np.full(C.shape, np.nan)
+        if axis == 1:
+            back[:, 1:], ahead[:, :-1] = fwd, fwd
+        else:
+            back[1:], ahead[:-1] = fwd, fwd
         one = np.where(np.isfinite(back), back, ahead)
         e = np.where(np.isfinite(back) & np.isfinite(ahead), 0.5 * (back + ahead), one)
         e = e.reshape(-1, 2)
