@@ -23,7 +23,12 @@ Scored per view against the render's truth:
   does not (and of those, the ones OpenCV places within a pixel of the truth, and of these the
   eligible ones), and the two detectors' errors on the ids both return.
 
-Run: ``python -m benchmarks.charuco_corpus [--views 500] [--start 0]``.
+With ``--shadow``, each view is the same but for a shadow's edge across its board, drawn on
+the sheet before the blur (:func:`shadow`): a straight edge through the board's middle part,
+softened over 1-40 px, the shaded side at 0.2-0.6 of the light (issue 23, item 2; the
+real photos' "shadow" alteration in ``benchmarks.charuco_altered``).
+
+Run: ``python -m benchmarks.charuco_corpus [--views 500] [--start 0] [--shadow]``.
 """
 
 from __future__ import annotations
@@ -45,19 +50,34 @@ from camkit.target import Charuco
 DICTS = ("DICT_4X4_250", "DICT_5X5_250", "DICT_6X6_250")
 
 
-def view(seed: int):
+def view(seed: int, shadowed: bool = False):
     rng = np.random.default_rng(seed)
     board = Charuco(int(rng.integers(5, 13)), int(rng.integers(4, 10)), 0.03, 0.03 * rng.uniform(0.55, 0.8),
                     str(rng.choice(DICTS)), legacy=bool(rng.random() < 0.3))
-    return place_and_render(rng, board, (15, 120), False)
+    light = (lambda img, truth: shadow(np.random.default_rng((seed, 1)), img, truth)) if shadowed else None
+    return place_and_render(rng, board, (15, 120), False, light=light)
+
+
+def shadow(rng: np.random.Generator, img: np.ndarray, truth) -> np.ndarray:
+    """``img`` under a shadow's edge: a straight edge in a random direction through a point
+    near the middle of the board's corners (``truth.corners_px``), softened by a logistic over
+    1-40 px, the shaded side at 0.2-0.6 of the light."""
+    pts = truth.corners_px[np.isfinite(truth.corners_px).all(axis=1)]
+    centre = pts.mean(axis=0) + rng.normal(0.0, 0.25, 2) * pts.std(axis=0)
+    ang = rng.uniform(0.0, 2.0 * np.pi)
+    width, depth = rng.uniform(1.0, 40.0), rng.uniform(0.2, 0.6)
+    yy, xx = np.mgrid[0:img.shape[0], 0:img.shape[1]]
+    t = np.clip(((xx - centre[0]) * np.cos(ang) + (yy - centre[1]) * np.sin(ang)) / width, -50.0, 50.0)
+    light = depth + (1.0 - depth) / (1.0 + np.exp(t))
+    return img * (light[..., None] if img.ndim == 3 else light)
 
 
 def place_and_render(rng: np.random.Generator, board, size_px: tuple[float, float], face_z: bool,
-                     unit: float | None = None):
+                     unit: float | None = None, light: Callable | None = None):
     """(board, camera, lens kind, pose, uint8 image, truth, noisy) for ``board``: a stress-corpus
     camera (0.3-4 MP), a pose with ``unit`` (default a square) spanning ``size_px`` pixels, a
-    third of the views partly outside the frame, seen from +z if ``face_z``; then
-    :func:`degrade`. None where no pose fits."""
+    third of the views partly outside the frame, seen from +z if ``face_z``; ``light(image,
+    truth)`` on the sheet where given; then :func:`degrade`. None where no pose fits."""
     camera, kind = _camera(rng, (0.3, 4.0))
     partial = rng.random() < 1 / 3
     for _ in range(20):
@@ -67,6 +87,8 @@ def place_and_render(rng: np.random.Generator, board, size_px: tuple[float, floa
     else:
         return None
     img, truth = render_target(camera, pose, board)
+    if light is not None:
+        img = light(img, truth)
     u8, noisy = degrade(rng, img)
     return board, camera, kind, pose, u8, truth, noisy
 
@@ -221,24 +243,27 @@ def score(views: int, start: int, make_view: Callable, is_eligible: Callable, op
     return out
 
 
-def run(views: int, start: int = 0) -> dict:
-    return score(views, start, view, eligible, opencv_corners)
+def run(views: int, start: int = 0, shadowed: bool = False) -> dict:
+    return score(views, start, lambda seed: view(seed, shadowed), eligible, opencv_corners)
 
 
-def cli(prog: str, run_views: Callable) -> None:
-    """``prog [--views 500] [--start 0]``: run and print the scores."""
+def cli(prog: str, run_views: Callable, shadow_option: bool = False) -> None:
+    """``prog [--views 500] [--start 0] [--shadow]``: run and print the scores."""
     p = argparse.ArgumentParser(prog=prog)
     p.add_argument("--views", type=int, default=500)
     p.add_argument("--start", type=int, default=0)
+    if shadow_option:
+        p.add_argument("--shadow", action="store_true", help="a shadow's edge across each board")
     a = p.parse_args()
     t0 = time.perf_counter()
-    for k, v in run_views(a.views, a.start).items():
+    scores = run_views(a.views, a.start, a.shadow) if shadow_option else run_views(a.views, a.start)
+    for k, v in scores.items():
         print(f"{k}: {v:.4g}" if isinstance(v, float) else f"{k}: {v}")
     print(f"({time.perf_counter() - t0:.0f} s)")
 
 
 def main() -> None:
-    cli("python -m benchmarks.charuco_corpus", run)
+    cli("python -m benchmarks.charuco_corpus", run, shadow_option=True)
 
 
 if __name__ == "__main__":
