@@ -509,3 +509,74 @@ def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndar
             sy = 0.0 if math.isnan(sy) else min(max(sy, -1.0), 1.0)
             qx += sx
             qy += sy
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _patch_grad(s: np.ndarray, x0: int, y0: int, side: int, i: int, j: int) -> tuple[float, float]:  # pragma: no cover
+    """Central differences of ``s`` at pixel (x0 + i, y0 + j) of the patch of ``side`` pixels
+    whose top-left is (x0, y0); 0 across the patch's own edge."""
+    gx = 0.5 * (s[y0 + j, x0 + i + 1] - s[y0 + j, x0 + i - 1]) if 0 < i < side - 1 else 0.0
+    gy = 0.5 * (s[y0 + j + 1, x0 + i] - s[y0 + j - 1, x0 + i]) if 0 < j < side - 1 else 0.0
+    return gx, gy
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_divide(s: np.ndarray, origin: np.ndarray, at: np.ndarray, theta: np.ndarray, sm2: float, side: int,
+                 out: np.ndarray) -> None:  # pragma: no cover - numba
+    """The ChArUco detector's light divided out of smoothed patches (its step 8): patch k of
+    ``s`` (``side`` pixels, top-left at ``origin[k]`` (x, y)) about the point ``at[k]`` (its
+    place within the patch), under light ``theta[k]`` = (m_x, m_y, a_x, a_y) per px from it,
+    is written to ``out`` as ``(v - a . d - sm2 m . grad v) / (1 + m . d)``, ``d`` the pixel's
+    offset from the point, ``grad`` central differences (0 across the patch's edge)."""
+    for k in range(origin.shape[0]):
+        x0, y0 = origin[k, 0], origin[k, 1]
+        mx, my, ax, ay = theta[k, 0], theta[k, 1], theta[k, 2], theta[k, 3]
+        for j in range(side):
+            dy = j - at[k, 1]
+            for i in range(side):
+                dx = i - at[k, 0]
+                gx, gy = _patch_grad(s, x0, y0, side, i, j)
+                out[y0 + j, x0 + i] = ((s[y0 + j, x0 + i] - ax * dx - ay * dy - sm2 * (mx * gx + my * gy))
+                                       / (1.0 + mx * dx + my * dy))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_response(s: np.ndarray, origin: np.ndarray, at: np.ndarray, sm2: float, side: int, r: int,
+                   pinv: np.ndarray, quad: np.ndarray, lin: np.ndarray) -> None:  # pragma: no cover - numba
+    """For :func:`light_divide`'s patches: the quadratic fitted (``pinv``, as
+    :func:`saddle_fit`'s, window ``r``) on the window about the pixel nearest each point, its
+    terms dx^2, dx dy, dy^2 (``quad`` (K, 3)), and the change of its linear terms (dx, dy) per
+    unit of each of the light's four numbers (``lin`` (K, 4, 2): m_x, m_y, a_x, a_y; the
+    patch's change for m_x is ``v dx + sm2 dv/dx``, for a_x ``dx``)."""
+    n = 2 * r + 1
+    for k in range(origin.shape[0]):
+        x0, y0 = origin[k, 0], origin[k, 1]
+        ci = math.floor(at[k, 0] + 0.5)
+        cj = math.floor(at[k, 1] + 0.5)
+        for t in range(3):
+            quad[k, t] = 0.0
+        for a in range(4):
+            lin[k, a, 0] = 0.0
+            lin[k, a, 1] = 0.0
+        for wj in range(n):
+            j = cj + wj - r
+            dy = j - at[k, 1]
+            for wi in range(n):
+                i = ci + wi - r
+                dx = i - at[k, 0]
+                q = wj * n + wi
+                v = s[y0 + j, x0 + i]
+                gx, gy = _patch_grad(s, x0, y0, side, i, j)
+                for t in range(3):
+                    quad[k, t] += v * pinv[t, q]
+                c0 = v * dx + sm2 * gx
+                c1 = v * dy + sm2 * gy
+                p3, p4 = pinv[3, q], pinv[4, q]
+                lin[k, 0, 0] += c0 * p3
+                lin[k, 0, 1] += c0 * p4
+                lin[k, 1, 0] += c1 * p3
+                lin[k, 1, 1] += c1 * p4
+                lin[k, 2, 0] += dx * p3
+                lin[k, 2, 1] += dx * p4
+                lin[k, 3, 0] += dy * p3
+                lin[k, 3, 1] += dy * p4

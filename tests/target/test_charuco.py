@@ -314,7 +314,85 @@ def test_opencv_tutorial_photos(shared_data):
         assert set(ids.tolist()) <= set(det.ids.tolist()), entry["file"]
         errs.append(np.hypot(*(det.corners[ids] - np.reshape(entry["charuco_corners"], (-1, 2))).T))
     e = np.concatenate(errs)
-    assert e.max() < 0.4 and np.median(e) < 0.2, (e.max(), np.median(e))
+    # Issue 23 asks 0.3 px: 0.303 (0.349 before step 8 read the light across each corner).
+    assert e.max() < 0.31 and np.median(e) < 0.12, (e.max(), np.median(e))
+
+
+def test_tutorial_photos_half_in_a_shadow_keep_their_corners(shared_data):
+    """The tutorial photos with their right half dimmed to a fifth past a soft edge (the
+    "shadow" of ``benchmarks.detect_altered``): every id OpenCV 5 finds on the photos as they
+    are is found, within 0.4 px of OpenCV's corner there, and no corner's sigma understates its
+    distance threefold. Before step 8 the corners along the shadow's edge moved up to 1.14 px
+    with sigmas of 0.06-0.14 px."""
+    from benchmarks.detect_altered import ALTERATIONS
+
+    folder = shared_data / "charuco_opencv_tutorial"
+    ref = json.loads((folder / "reference.json").read_text())
+    board = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
+    errs, z = [], []
+    for entry in ref["detections"]:
+        ids = np.ravel(entry["charuco_ids"])
+        img, pts = ALTERATIONS["shadow"](read_image(folder / "images" / entry["file"]),
+                                         np.reshape(entry["charuco_corners"], (-1, 2)).astype(np.float64))
+        det = board.detect(img)
+        assert set(ids.tolist()) <= set(det.ids.tolist()), entry["file"]
+        e = np.hypot(*(det.corners[ids] - pts).T)
+        errs.append(e)
+        z.append(e / (np.sqrt(2.0) * det.sigma_px[ids]))
+    e, z = np.concatenate(errs), np.concatenate(z)
+    assert e.max() < 0.4 and np.median(e) < 0.12, (e.max(), np.median(e))
+    assert z.max() < 3.0, z.max()
+
+
+@pytest.mark.parametrize("width,depth,angle", [(8.0, 0.25, 0.0), (15.0, 0.2, 2.0), (4.0, 0.3, 0.7)])
+def test_a_shadows_edge_across_a_rendered_board_leaves_its_corners_in_place(width, depth, angle):
+    """A rendered board under a shadow's edge (on the sheet, then blurred by 1 px): the light
+    read across each corner (step 8) leaves every corner within 0.03 px of the truth (before:
+    0.089 and 0.078 px with edges 8 and 15 px soft). A sharp edge (4 px) a square's fraction
+    from a corner, beyond what its fit sees, moves nothing: a reading over whole squares moved
+    one 0.25 px."""
+    from scipy.ndimage import gaussian_filter
+
+    b = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
+    rvec = {0.0: [0.3, -0.2, 0.1], 2.0: [-0.4, 0.1, 0.2], 0.7: [0.2, 0.3, -0.4]}[angle]
+    img, truth = render_target(CAM, _view(b, CAM, rvec, distance=1.3), b)
+    yy, xx = np.mgrid[0:CAM.height, 0:CAM.width]
+    c = truth.corners_px[truth.visible].mean(axis=0)
+    t = np.clip(((xx - c[0]) * np.cos(angle) + (yy - c[1]) * np.sin(angle)) / width, -50, 50)
+    light = depth + (1.0 - depth) / (1.0 + np.exp(t))
+    u8 = np.clip(gaussian_filter(img * light, 1.0) * 255 + 0.5, 0, 255).astype(np.uint8)
+    det = b.detect(u8)
+    assert det.n_found >= 11, det.message
+    err = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
+    assert err.max() < 0.03, err.round(3)
+
+
+def test_the_light_divided_out_of_a_junction_gives_its_saddle_back():
+    """:func:`_light_refit` on a junction (rendered 8x over, blurred 1.2 px) under light that
+    grows 2 % a pixel and a glare's slope of 0.002 a pixel: the plain saddle fit is 0.3-0.5 px
+    off, the refit with that light within 0.005 px (a first-order shift of the saddle by the
+    gradient finds 70 % of the move)."""
+    from scipy.ndimage import gaussian_filter
+
+    from camkit.target._markers import refine_patches
+    from camkit.target.charuco import _light_refit
+
+    n, ss = 80, 8
+    c0 = np.array([40.3, 39.7])
+    yy, xx = (np.mgrid[0:n * ss, 0:n * ss] + 0.5) / ss - 0.5
+    u = (xx - c0[0]) * np.cos(0.35) + (yy - c0[1]) * np.sin(0.35)
+    v = -(xx - c0[0]) * np.sin(0.35) + (yy - c0[1]) * np.cos(0.35)
+    pattern = gaussian_filter(np.where(u * v > 0, 0.85, 0.12).reshape(n, ss, n, ss).mean(axis=(1, 3)), 1.2)
+    gy, gx = np.mgrid[0:n, 0:n] - c0[::-1, None, None]
+    m, a = np.array([0.02, -0.006]), np.array([0.0, 0.002])
+    img = pattern * (1.0 + m[0] * gx + m[1] * gy) + a[0] * gx + a[1] * gy
+    q, _ = refine_patches(img, c0[None] + 0.2, 5, 1.5)
+    assert np.hypot(*(q[0] - c0)) > 0.3
+    # The light as seen from the plain fit's place.
+    at = 1.0 + m @ (q[0] - c0)
+    theta = np.concatenate([m / at, a])[None]
+    back, _ = _light_refit(img, q, np.array([5]), 1.5, theta)
+    assert np.hypot(*(back[0] - c0)) < 0.005, back[0] - c0
 
 
 @pytest.mark.parametrize("kwargs,match", [
