@@ -1466,11 +1466,12 @@ def _light_refit(full: np.ndarray, pts: np.ndarray, r: np.ndarray, sm: float, th
     image with light ``theta`` (K, 4: ``m``, ``a`` of :func:`_light`, per px from the point)
     divided out around it: on each point's smoothed patch, ``(v - a . d - sm^2 m . grad v) /
     (1 + m . d)``, ``d`` the offset from the point (the smoothing of ``(m . d) v`` is ``m . d``
-    times the smoothed ``v`` plus ``sm^2 m . grad v``). Returns the places (NaN where the fit
-    found no saddle near) and how far each of the light's four numbers moves them (K, 2, 4: px per unit), to
-    first order (the change of the fit's linear terms through its inverse Hessian), scaled by
-    how much further the refit moved than that predicts (the fit's window follows its saddle;
-    1 to 2 times)."""
+    times the smoothed ``v`` plus ``sm^2 m . grad v``; kernel
+    :func:`~camkit._kernels.detect.light_divide`). Returns the places (NaN where the fit found
+    no saddle near) and how far each of the light's four numbers moves them (K, 2, 4: px per
+    unit), to first order (the change of the fit's linear terms through its inverse Hessian:
+    :func:`~camkit._kernels.detect.light_response`), scaled by how much further the refit
+    moved than that predicts (the fit's window follows its saddle; 1 to 2 times)."""
     half = int(r.max()) + iters + 3
     mosaic, shift = _smoothed_patches(full, pts, half, sm)
     side = 2 * half + 1
