@@ -502,12 +502,13 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # 7. Corners beside markers that their markers predict beyond the fine fit's reach.
     _from_wider_search(board, full, level, factor, cand[lost], pred[lost], size[cand[lost]], clear[lost], u[lost],
                        v[lost], out, sig, win_of, sm_of, res_of, typical)
+    # 8. Light that changes across a corner (a shadow's edge, uneven light) moves its saddle
+    # (corners it leaves too uncertain are dropped: counted after it).
+    _light(board, full, out, sig, win_of, sm_of, noise)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
                                       "passes the saddle-point fit")
-    # 8. Light that changes across a corner (a shadow's edge, uneven light) moves its saddle.
-    _light(board, full, out, sig, win_of, sm_of, noise)
     window = int(np.median(win)) if len(win) else 0
     return Detection(True, out, sig, window,
                      f"found {n_found} of {N} corners from {len(confirmed)} markers (window {window} px)")
