@@ -1417,9 +1417,9 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
     with np.errstate(invalid="ignore", divide="ignore"):
         seen = np.einsum("ki,kij,ki->k", theta, np.linalg.inv(cov), theta)
     # The squares' half-contrast: the brighter half of the pairs (the white ones) against the rest.
-    bright = M > np.median(M, axis=1, keepdims=True)
-    contrast = 0.5 * np.abs(np.where(bright, M, 0).sum(axis=1) / np.maximum(bright.sum(axis=1), 1)
-                            - np.where(~bright, M, 0).sum(axis=1) / np.maximum((~bright).sum(axis=1), 1))
+    Ms = np.sort(M, axis=1)
+    half_n = Ms.shape[1] // 2
+    contrast = 0.5 * (Ms[:, half_n:].mean(axis=1) - Ms[:, :half_n].mean(axis=1))
     misfit = np.sqrt((res * res).sum(axis=1) / dof)
     fits = misfit <= 3.0 * np.sqrt(var.mean(axis=1)) + _SHADE_MISFIT * contrast
     read = seen > _SHADE_CHI2
