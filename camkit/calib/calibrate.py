@@ -239,8 +239,11 @@ def _unsure_error(spread: float | None, share: float | None) -> EstimationError:
     """The refusal of views that leave the focal length unsure: ``spread`` the angle (degrees)
     within which every board's normal lies, where under :data:`_MIN_SPREAD_DEG`; ``share`` the
     fit's focal-length standard deviation over the focal length, where there was a fit."""
+    # A share that is not finite: the fit's normal equations are singular (boards square to the
+    # camera, exact corners), f has no standard deviation at all.
     unsure = "" if share is None else (
-        f"the fit leaves it unsure by {100 * share:.0f} %" if np.isfinite(share) else "the fit leaves it unsure")
+        f"the fit leaves it unsure by {100 * share:.0f} %" if np.isfinite(share)
+        else "the fit leaves it wholly undetermined")
     if spread is not None:
         cause = (f"every board is within {spread:.1f} degrees of the same orientation; the focal length cannot be "
                  "determined" + (f" ({unsure})" if unsure else ""))

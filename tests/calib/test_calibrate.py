@@ -414,8 +414,11 @@ def test_boards_tilted_one_way_calibrate_where_the_fit_determines_the_focal_leng
                                               r"it unsure by \d+ %, over 10 %\)\. Tilt the board differently"):
         calibrate(*_one_way(2.0, 1.0, seed=2), width=1280, height=960)  # unsure by 20 %
     square_on = [Pose(np.eye(3), [-0.12 + 0.01 * k, -0.07, 0.5 + 0.05 * k]) for k in range(5)]
+    # (Whether LAPACK finds their normal equations singular or merely near it is rounding: f is
+    # then either undetermined or unsure by thousands of percent.)
     with pytest.raises(EstimationError, match=r"within \d\.\d degrees of the same orientation; the focal length "
-                                              r"cannot be determined \(the fit leaves it unsure by \d+ %\)"):
+                                              r"cannot be determined \(the fit leaves it (unsure by \d+ %|wholly "
+                                              r"undetermined)\)"):
         calibrate([OBJ] * 5, [CAM.project(p.apply(OBJ)) for p in square_on], width=1280, height=960)
 
 
