@@ -11,6 +11,7 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 from scipy.spatial import cKDTree
 
+from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
 from camkit.target.aruco import ArucoDictionary
@@ -380,6 +381,41 @@ def _swollen(n: int, b: float) -> np.ndarray:
     return np.stack([unit + out * ((m >> np.arange(4)) & 1)[:, None] for m in masks])
 
 
+class _Pyramid:
+    """:func:`find_markers`'s 2x2-mean pyramid of ``full`` (level ``k``: ``_half`` ``k`` times),
+    down to a longer side of at most :data:`MARKER_LEVEL_SIDE`, each level made where first
+    read: the coarsest is read first and is often the only one read (a 12 MP image's coarsest
+    is two halvings down, made in one pass without the half level: :func:`quarter_mean`)."""
+
+    def __init__(self, full: np.ndarray) -> None:
+        n, side = 1, max(full.shape)
+        while side > MARKER_LEVEL_SIDE:
+            side //= 2
+            n += 1
+        self._levels: dict[int, np.ndarray] = {0: full}
+        self._n = n
+
+    def __len__(self) -> int:
+        return self._n
+
+    def level(self, k: int) -> np.ndarray:
+        """Level ``k``: from level ``k - 1`` where made, else from level ``k - 2`` where made (in
+        one pass), else from level ``k - 1`` made so."""
+        if k not in self._levels:
+            if k - 1 not in self._levels and k - 2 in self._levels:
+                src = self._levels[k - 2]
+                H, W = src.shape
+                out = np.empty((H // 4, W // 4))
+                if isinstance(src, RawGrey):
+                    detect_kernels.quarter_mean(src.raw, src.a, src.b, out)
+                else:
+                    detect_kernels.quarter_mean(np.ascontiguousarray(src, dtype=np.float64), 1.0, 0.0, out)
+                self._levels[k] = out
+            else:
+                self._levels[k] = _half(self.level(k - 1))
+        return self._levels[k]
+
+
 def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_squares: float = 0.0,
                  noise: float | None = None) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
     """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
@@ -405,12 +441,11 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     lens (:func:`_read_bent`), and kept with its corners as found (not refined to straight
     edges). ``noise``: the image's (:func:`image_noise`), where already measured.
     """
-    levels = [(full, 1)]
-    while max(levels[-1][0].shape) > MARKER_LEVEL_SIDE:
-        levels.append((_half(levels[-1][0]), levels[-1][1] * 2))
+    levels = _Pyramid(full)
     n_cells = d.marker_size + 2 * border
     found: dict[int, list[np.ndarray]] = {}
-    for g, f in reversed(levels):
+    for k in reversed(range(len(levels))):
+        g, f = levels.level(k), 2 ** k
         if isinstance(g, RawGrey):
             g = g.dense()
         # Two pixels a cell at least where a finer level is left to read; on the full image,
@@ -680,7 +715,8 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
         hs = fit_homographies(obj[ids], np.stack([found[m][0] for m in ids]))
         homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
         ids = [m for m in ids if m in homs]
-    pitch = {m: float(np.sqrt(abs(quad_area(found[m][0])))) * step for m in ids}
+    pitch = (dict(zip(ids, (np.sqrt(np.abs(quad_area(np.stack([found[m][0] for m in ids])))) * step).tolist(),
+                      strict=True)) if ids else {})
     agree = np.zeros(len(ids), dtype=np.int64)
     disagree = np.zeros(len(ids), dtype=np.int64)
     if len(ids) >= 2:
