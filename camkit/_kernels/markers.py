@@ -591,3 +591,100 @@ def refine_quads(img: np.ndarray, quads: np.ndarray, n_cells: int, iters: int,
                 out[k, j, 0] = new[j, 0]
                 out[k, j, 1] = new[j, 1]
 
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _pairwise_sum(a: np.ndarray, i0: int, n: int) -> float:  # pragma: no cover - numba
+    """``a[i0:i0 + n].sum()`` in NumPy's order for a short contiguous run (under 128: eight
+    running sums, then the rest one by one)."""
+    if n < 8:
+        s = 0.0
+        for i in range(n):
+            s += a[i0 + i]
+        return s
+    r0, r1, r2, r3 = a[i0], a[i0 + 1], a[i0 + 2], a[i0 + 3]
+    r4, r5, r6, r7 = a[i0 + 4], a[i0 + 5], a[i0 + 6], a[i0 + 7]
+    i = 8
+    while i < n - n % 8:
+        r0 += a[i0 + i]
+        r1 += a[i0 + i + 1]
+        r2 += a[i0 + i + 2]
+        r3 += a[i0 + i + 3]
+        r4 += a[i0 + i + 4]
+        r5 += a[i0 + i + 5]
+        r6 += a[i0 + i + 6]
+        r7 += a[i0 + i + 7]
+        i += 8
+    s = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        s += a[i0 + i]
+        i += 1
+    return s
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndarray, n_cells: int, m: int,
+               cell: np.ndarray, white: np.ndarray) -> None:  # pragma: no cover - numba
+    """The cells of each quad's marker and the white margin round it, in one pass: point ``j``
+    of ``pts`` (P, 2; the first ``n_cells * m``, each cell's ``m`` points in turn, then the
+    margin's) taken through homography ``Hs[k]`` and sampled bilinearly (edges replicated)
+    on ``img`` stretched by ``a * v + b``; ``cell[k, c]`` the mean of cell ``c``'s samples,
+    ``white[k]`` the median of the margin's. A homography's row that is not finite samples
+    at NaN's place (NaN out): the caller refuses those quads."""
+    K = Hs.shape[0]
+    P = pts.shape[0]
+    for k in prange(K):
+        v = np.empty(P)
+        for j in range(P):
+            x, y = pts[j, 0], pts[j, 1]
+            X = Hs[k, 0, 0] * x + Hs[k, 0, 1] * y + Hs[k, 0, 2]
+            Y = Hs[k, 1, 0] * x + Hs[k, 1, 1] * y + Hs[k, 1, 2]
+            Z = Hs[k, 2, 0] * x + Hs[k, 2, 1] * y + Hs[k, 2, 2]
+            px, py = X / Z, Y / Z
+            if np.isfinite(px) and np.isfinite(py):
+                v[j] = bilinear(img, px, py) * a + b
+            else:
+                v[j] = np.nan
+        for c in range(n_cells):
+            cell[k, c] = _pairwise_sum(v, c * m, m) / m
+        r = v[n_cells * m:].copy()
+        r.sort()  # NaN last, as NumPy's median (which returns NaN where any is)
+        q = r.shape[0]
+        if q == 0 or np.isnan(r[q - 1]):
+            white[k] = np.nan
+        elif q % 2:
+            white[k] = r[q // 2]
+        else:
+            white[k] = (r[q // 2 - 1] + r[q // 2]) / 2.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _popcount(v: np.uint64) -> int:  # pragma: no cover - numba
+    """The set bits of ``v`` (the SWAR count: pairs, nibbles, then bytes summed by a multiply)."""
+    v = v - ((v >> np.uint64(1)) & np.uint64(0x5555555555555555))
+    v = (v & np.uint64(0x3333333333333333)) + ((v >> np.uint64(2)) & np.uint64(0x3333333333333333))
+    v = (v + (v >> np.uint64(4))) & np.uint64(0x0F0F0F0F0F0F0F0F)
+    return int((v * np.uint64(0x0101010101010101)) >> np.uint64(56))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def nearest_codes(bits: np.ndarray, turned: np.ndarray, ids: np.ndarray, turns: np.ndarray,
+                  errors: np.ndarray) -> None:  # pragma: no cover - numba
+    """For each observed code ``bits[k]`` (n*n uint8, row by row, at most 64), the code nearest
+    in Hamming distance among ``turned`` (4, N: each code turned ``t`` quarter turns by
+    ``np.rot90``, bit ``i`` its ``i``-th cell): ``ids``, ``turns``, ``errors``, the first in
+    (turn, code) order where several are as near."""
+    K, nn = bits.shape
+    N = turned.shape[1]
+    for k in range(K):
+        obs = np.uint64(0)
+        for i in range(nn):
+            if bits[k, i]:
+                obs |= np.uint64(1) << np.uint64(i)
+        best, bt, bi = nn + 1, 0, 0
+        for t in range(4):
+            for c in range(N):
+                d = _popcount(obs ^ turned[t, c])
+                if d < best:
+                    best, bt, bi = d, t, c
+        ids[k], turns[k], errors[k] = bi, bt, best

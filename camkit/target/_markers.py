@@ -168,19 +168,27 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     # The white margin around the marker: half a cell outside each side's middle.
     ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
     pts = np.concatenate([cells, ring])
-    p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
-    with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate quad's rows: not read below
-        px = p[:, :, :2] / p[:, :, 2:]
+    m = len(middles) ** 2
     if bend:
+        p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate quad's rows: not read below
+            px = p[:, :, :2] / p[:, :, 2:]
         px = distort(px, bend, g.shape)
         reach = np.isfinite(px).all(axis=(1, 2))
         ok &= reach
         px[~reach] = 0.0
-    vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
-                   "bilinear").reshape(K, len(pts))
-    m = len(middles) ** 2
-    cell = vals[:, :n * n * m].reshape(K, n, n, m).mean(axis=3)
-    white = np.median(vals[:, n * n * m:], axis=1)
+        vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
+                       "bilinear").reshape(K, len(pts))
+        cell = vals[:, :n * n * m].reshape(K, n, n, m).mean(axis=3)
+        white = np.median(vals[:, n * n * m:], axis=1)
+    else:
+        # Projection, sampling, the cells' means and the margin's median in one kernel.
+        cell, white = np.empty((K, n * n)), np.empty(K)
+        raw = isinstance(g, RawGrey)
+        markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64),
+                                   g.a if raw else 1.0, g.b if raw else 0.0, np.ascontiguousarray(Hs),
+                                   np.ascontiguousarray(pts), n * n, m, cell, white)
+        cell = cell.reshape(K, n, n)
     inner = np.zeros((n, n), dtype=bool)
     inner[border:-border, border:-border] = True
     rim = cell[:, ~inner]

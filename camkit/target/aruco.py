@@ -17,6 +17,7 @@ from importlib import resources
 
 import numpy as np
 
+from camkit._kernels import markers as markers_kernels
 from camkit.errors import ParameterError
 
 __all__ = ["DICTIONARY_NAMES", "ArucoDictionary", "get_dictionary"]
@@ -78,22 +79,48 @@ class ArucoDictionary:
     def identify_many(self, bits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`identify` for ``(K, n, n)`` observed bits at once: ``(ids, turns, errors)``,
         each (K,), id -1 where no code is within ``max_correction_bits``."""
-        b = np.asarray(bits, dtype=np.float64)
+        b = np.asarray(bits)
         n = self.marker_size
         if b.ndim != 3 or b.shape[1:] != (n, n):
             raise ParameterError(f"bits: expected shape (K, {n}, {n}), got {b.shape}")
         K = b.shape[0]
+        if n * n > 64:  # (no predefined dictionary: at most 7 x 7 bits)
+            return self._identify_wide(b)
+        ids = np.empty(K, dtype=np.int64)
+        turns = np.empty(K, dtype=np.int64)
+        errors = np.empty(K, dtype=np.int64)
+        # Hamming distances to every code in each quarter turn, the bits packed into one word
+        # (kernel :func:`camkit._kernels.markers.nearest_codes`): the observed bits turned back
+        # ``t`` times differ from a code where they differ from the code turned ``t`` times.
+        markers_kernels.nearest_codes(np.ascontiguousarray((b != 0).reshape(K, n * n), dtype=np.uint8),
+                                      _turned_codes(self.codes.tobytes(), len(self.codes), n), ids, turns, errors)
+        ids[errors > self.max_correction_bits] = -1
+        return ids, turns, errors
+
+    def _identify_wide(self, bits: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`identify_many` for codes of more than 64 bits, by products: bits that agree
+        are 1*1 or 0*0."""
+        b = np.asarray(bits != 0, dtype=np.float64)
+        n, K = self.marker_size, bits.shape[0]
         turned = np.stack([np.rot90(b, -k, axes=(1, 2)).reshape(K, -1) for k in range(4)], axis=1)  # undo k turns
         codes = self.codes.reshape(len(self.codes), -1).astype(np.float64)
-        # Hamming distance as products: bits that agree are 1*1 or 0*0.
-        agree = turned @ codes.T + (1.0 - turned) @ (1.0 - codes).T  # (K, 4, N)
-        dist = n * n - agree
-        flat = dist.reshape(K, -1)
+        flat = (n * n - (turned @ codes.T + (1.0 - turned) @ (1.0 - codes).T)).reshape(K, -1)  # (K, 4 N)
         best = np.argmin(flat, axis=1)
         errors = flat[np.arange(K), best].astype(np.int64)
         turns, ids = np.divmod(best, len(self.codes))
         ids = np.where(errors <= self.max_correction_bits, ids, -1)
         return ids.astype(np.int64), turns.astype(np.int64), errors
+
+
+@functools.lru_cache(maxsize=16)
+def _turned_codes(codes: bytes, N: int, n: int) -> np.ndarray:
+    """(4, N) uint64: each of the ``N`` codes (``n x n`` uint8 bits as bytes) turned ``t``
+    quarter turns by ``np.rot90``, its cells row by row as bits 0, 1, ... of one word."""
+    c = np.frombuffer(codes, dtype=np.uint8).reshape(N, n, n)
+    shifts = np.arange(n * n, dtype=np.uint64)
+    return np.stack([(np.rot90(c, t, axes=(1, 2)).reshape(N, -1).astype(np.uint64) << shifts).sum(axis=1,
+                                                                                                 dtype=np.uint64)
+                     for t in range(4)])
 
 
 @functools.cache
