@@ -288,3 +288,65 @@ def test_the_division_model_undoes_itself_and_is_fitzgibbons():
         assert np.isnan(undistort(p[2:], bend, shape)).all()
         np.testing.assert_allclose(distort(undistort(p[:2], bend, shape), bend, shape), p[:2], atol=1e-9)
     assert np.isnan(distort(np.array([[319.5 + 4000.0, 239.5]]), 0.5, shape)).all()
+
+
+def test_the_cells_are_read_in_one_kernel_as_sampled_one_by_one():
+    """read_cells (projection, bilinear samples, the cells' means, the margin's median) against
+    the same reading in NumPy: each point through its homography, sampled by _sample, the
+    means and median taken by NumPy; on a float image and on a RawGrey (its stretch applied
+    per sample), quads at random and one whose homography sends points to infinity (NaN)."""
+    from camkit._kernels import markers as mk
+    from camkit.target._markers import RawGrey
+    from camkit.target.checkerboard import _sample
+
+    rng = np.random.default_rng(3)
+    raw = rng.integers(0, 256, (120, 160), dtype=np.uint8)
+    n, m = 8, 9
+    g, o = np.mgrid[0:n, 0:n]
+    mid = np.array([0.3, 0.5, 0.7])
+    ov, ou = np.meshgrid(mid, mid, indexing="ij")
+    cells = np.stack([(o[:, :, None] + ou.ravel()).ravel(), (g[:, :, None] + ov.ravel()).ravel()], axis=-1)
+    pts = np.concatenate([cells, [[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]]])
+    unit = np.array([[0.0, 0.0], [n, 0.0], [n, n], [0.0, n]])
+    quads = unit * rng.uniform(2, 6, (30, 1, 1)) + rng.uniform(-10, 150, (30, 1, 2)) + rng.normal(0, 2, (30, 4, 2))
+    Hs = fit_homographies(np.broadcast_to(unit, quads.shape), quads)
+    Hs[0] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [1.0, 0.0, -4.0]]  # x = 4 (two margin points) to infinity
+    for img, a, b in ((raw.astype(np.float64) / 255.0, 1.0, 0.0), (raw, 0.7 / 255.0, -0.1)):
+        cell, white = np.empty((len(Hs), n * n)), np.empty(len(Hs))
+        mk.read_cells(img, a, b, Hs, pts, n * n, m, cell, white)
+        p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            px = p[:, :, :2] / p[:, :, 2:]
+        ok = np.isfinite(px).all(axis=(1, 2))
+        grey = RawGrey(img, a, b) if img.dtype == np.uint8 else img
+        vals = _sample(grey, px[ok, :, 0], px[ok, :, 1], "bilinear")
+        np.testing.assert_allclose(cell[ok], vals[:, :n * n * m].reshape(-1, n * n, m).mean(axis=2), rtol=0,
+                                   atol=1e-12)
+        np.testing.assert_allclose(white[ok], np.median(vals[:, n * n * m:], axis=1), rtol=0, atol=1e-12)
+        assert not ok[0] and np.isnan(white[0])  # a margin's point at infinity: no median
+
+
+def test_the_marker_pyramid_makes_only_the_levels_read_and_each_as_halving_does():
+    """find_markers' pyramid: a 12 MP image's coarsest level (two halvings) made in one pass
+    without the half level, bit for bit as _half twice (uint8 through its stretch, and float),
+    on odd sizes too; the half level made only when asked for, from the full image."""
+    from camkit.target._markers import MARKER_LEVEL_SIDE, RawGrey, _Pyramid
+    from camkit.target.checkerboard import _half
+
+    rng = np.random.default_rng(4)
+    for shape in ((3000, 4000), (3001, 4003), (6001, 8002)):
+        raw = rng.integers(0, 256, shape, dtype=np.uint8)
+        for full in (RawGrey(raw, 1.3 / 255.0, -0.2), raw / 255.0):
+            pyr = _Pyramid(full)
+            side, levels = max(shape), 1
+            while side > MARKER_LEVEL_SIDE:
+                side //= 2
+                levels += 1
+            assert len(pyr) == levels
+            coarse = pyr.level(len(pyr) - 1)
+            assert 1 not in pyr._levels  # the half level was not made
+            ref = full
+            for _ in range(len(pyr) - 1):
+                ref = _half(ref)
+            np.testing.assert_array_equal(coarse, ref)
+            np.testing.assert_array_equal(pyr.level(1), _half(full))
