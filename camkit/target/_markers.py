@@ -5,6 +5,7 @@ board's layout by their neighbours, and X-junctions refined at their saddle poin
 from __future__ import annotations
 
 import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
@@ -238,6 +239,32 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL
 
 
+_SCRATCH = threading.local()
+
+#: :func:`_scratch` keeps a buffer of at most this many bytes (a 12 MP image's marker level,
+#: 1000 x 750, needs 6 MB for its integral image); a larger one is made afresh each time.
+_SCRATCH_MAX_BYTES = 16 << 20
+
+
+def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
+    """A work array of ``shape`` (contents undefined) from this thread's buffer ``name``, kept
+    between calls where it is small enough (:data:`_SCRATCH_MAX_BYTES`): a fresh allocation's
+    pages are faulted in as they are first written, which made :func:`find_quads`'s integral
+    image and masks take two to three times as long inside a detection as when timed alone
+    (0.95 against 0.31 ms at 640 x 480). Grows where a larger one is asked for; the arrays of
+    one call of :func:`find_quads` are all its own (one name each)."""
+    n = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    if n > _SCRATCH_MAX_BYTES:
+        return np.empty(shape, dtype=dtype)
+    bufs = getattr(_SCRATCH, "bufs", None)
+    if bufs is None:
+        bufs = _SCRATCH.bufs = {}
+    buf = bufs.get(name)
+    if buf is None or buf.size < n:
+        buf = bufs[name] = np.empty(n, dtype=np.uint8)
+    return buf[:n].view(dtype).reshape(shape)
+
+
 def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple[int, ...] | None = None,
                cuts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
@@ -250,17 +277,17 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
     ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
     H, W = g.shape
-    ii = np.empty((H + 1, W + 1))
+    ii = _scratch("integral", (H + 1, W + 1), np.float64)
     markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
     masks = []
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
-    for r, c in [(r, c) for r in radii for c in offsets]:
-        dark = np.empty((H, W), dtype=np.bool_)
+    for i, (r, c) in enumerate([(r, c) for r in radii for c in offsets]):
+        dark = _scratch(f"mask{i}", (H, W), np.bool_)
         markers_kernels.dark_mask(g, ii, r, c, dark)
         if opening:
-            opened = np.empty((H, W), dtype=np.bool_)
+            opened = _scratch("opened", (H, W), np.bool_)
             markers_kernels.cross_filter(dark, False, opened)
             markers_kernels.cross_filter(opened, True, dark)
         if cuts is not None:

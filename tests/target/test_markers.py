@@ -350,3 +350,30 @@ def test_the_marker_pyramid_makes_only_the_levels_read_and_each_as_halving_does(
                 ref = _half(ref)
             np.testing.assert_array_equal(coarse, ref)
             np.testing.assert_array_equal(pyr.level(1), _half(full))
+
+
+def test_quads_found_on_threads_side_by_side_are_those_found_one_by_one():
+    """find_quads keeps its integral image and masks between calls, per thread: detections run
+    on threads side by side (as Dask's threaded scheduler runs them) find the same quads as
+    one by one, images of different sizes interleaved (a buffer kept from a larger image
+    serves a smaller one), the opened masks of an AprilGrid too."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from camkit.target._markers import find_quads
+
+    rng = np.random.default_rng(8)
+    imgs = []
+    for shape in ((240, 320), (480, 640), (200, 260), (480, 640)):
+        img = np.full(shape, 0.9)
+        for _ in range(12):  # dark squares of 16-40 px
+            s = int(rng.integers(16, 40))
+            y, x = int(rng.integers(0, shape[0] - s)), int(rng.integers(0, shape[1] - s))
+            img[y:y + s, x:x + s] = 0.1
+        imgs.append(img + rng.normal(0, 0.02, shape))
+    jobs = [(img, opening) for img in imgs for opening in (False, True)] * 3
+    alone = [find_quads(img, 10, opening=opening) for img, opening in jobs]
+    assert all(len(q) >= 5 for q in alone)
+    with ThreadPoolExecutor(4) as ex:
+        together = list(ex.map(lambda j: find_quads(j[0], 10, opening=j[1]), jobs))
+    for a, b in zip(alone, together, strict=True):
+        np.testing.assert_array_equal(a, b)
