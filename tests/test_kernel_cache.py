@@ -19,8 +19,16 @@ remap(img, np.zeros((4, 4, 2), np.float32), interpolation="bicubic")  # uint8 RG
 remap(img.astype(np.float32), np.zeros((4, 4, 2)), interpolation="bicubic")
 warp_perspective(img[..., :2], np.eye(3), width=4, height=4, interpolation="lanczos3")
 warp_perspective(img, np.eye(3), width=4, height=4, interpolation="lanczos3")
+# The detection kernels' serial and parallel twins: one function, two closures (their int is
+# in the cache key), each loaded as its own.
+from camkit._kernels import markers as markers_kernels
+src = np.random.default_rng(0).random((2, 4, 2))
+out = np.empty((2, 3, 3))
+markers_kernels._fit_homographies_serial(src, src + 1.0, out)
+markers_kernels._fit_homographies_parallel(src, src + 1.0, out)
 used = [remap_kernels.BILINEAR_U8C3["map"].main, remap_kernels.RGB["map"][2], remap_kernels.REMAP[2], remap_kernels.WARP_PERSPECTIVE[3],
-        remap_kernels.RGB["perspective"][3]]
+        remap_kernels.RGB["perspective"][3], markers_kernels._fit_homographies_serial,
+        markers_kernels._fit_homographies_parallel]
 print(json.dumps([[sum(d.stats.cache_hits.values()), sum(d.stats.cache_misses.values())] for d in used]))
 """
 

@@ -9,6 +9,15 @@ from numba import njit, prange
 
 from camkit._kernels.remap import keys4
 
+#: The parallel kernels below that a detection hands a few points, patches or quads at a time
+#: run serially where their work (serial, estimated from their sizes) is under this many ns:
+#: a parallel loop wakes the OpenMP pool's workers, which sleep between loops
+#: (``OMP_WAIT_POLICY=PASSIVE``, camkit/__init__.py), and on the 2-core machine a wake-up cost
+#: 66 us, more than the work of most such calls (about 30 of them in a ChArUco detection of
+#: a 640 x 480 photo). The per-unit costs in the estimates were measured there
+#: (benchmarks/notes.md, forty-sixth session).
+PARALLEL_MIN_NS = 200_000
+
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def gaussian_taps(sigma: float) -> np.ndarray:  # pragma: no cover - numba
@@ -110,39 +119,56 @@ def local_maxima(r: np.ndarray, radius: int, threshold: float, out: np.ndarray) 
     return n
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def _make_blur_patches(PARALLEL: int):
+    """:func:`blur_patches`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: int, sigma: float,
+                     out: np.ndarray) -> None:  # pragma: no cover - numba
+        """The Gaussian blur of :func:`gaussian_blur` (edges replicated), computed only on square
+        patches: patch i covers image pixels ``origin[i] + (0..side-1)`` (x, y) and is written to
+        ``out`` at ``tile[i] + (0..side-1)``. Each patch reads its own margin of 3 sigma, so the
+        values are those of the whole image blurred."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        H, W = img.shape
+        k = gaussian_taps(sigma)
+        R = k.shape[0] // 2
+        for p in prange(origin.shape[0]):
+            x0, y0 = origin[p, 0], origin[p, 1]
+            tx, ty = tile[p, 0], tile[p, 1]
+            # Tap after tap along whole rows (each sum in the taps' order, as gaussian_blur's).
+            row = np.empty(side + 2 * R)
+            tmp = np.zeros((side + 2 * R, side))
+            for j in range(side + 2 * R):
+                yy = min(max(y0 + j - R, 0), H - 1)
+                for x in range(side + 2 * R):
+                    row[x] = img[yy, min(max(x0 + x - R, 0), W - 1)]
+                for i in range(2 * R + 1):
+                    for x in range(side):
+                        tmp[j, x] += k[i] * row[x + i]
+            acc = np.empty(side)
+            for y in range(side):
+                acc[:] = 0.0
+                for i in range(2 * R + 1):
+                    for x in range(side):
+                        acc[x] += k[i] * tmp[y + i, x]
+                for x in range(side):
+                    out[ty + y, tx + x] = acc[x]
+
+    return blur_patches
+
+
+_blur_patches_serial, _blur_patches_parallel = _make_blur_patches(0), _make_blur_patches(1)
+
+
 def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: int, sigma: float,
-                 out: np.ndarray) -> None:  # pragma: no cover - numba
-    """The Gaussian blur of :func:`gaussian_blur` (edges replicated), computed only on square
-    patches: patch i covers image pixels ``origin[i] + (0..side-1)`` (x, y) and is written to
-    ``out`` at ``tile[i] + (0..side-1)``. Each patch reads its own margin of 3 sigma, so the
-    values are those of the whole image blurred."""
-    H, W = img.shape
-    k = gaussian_taps(sigma)
-    R = k.shape[0] // 2
-    for p in prange(origin.shape[0]):
-        x0, y0 = origin[p, 0], origin[p, 1]
-        tx, ty = tile[p, 0], tile[p, 1]
-        # Tap after tap along whole rows (each sum in the taps' order, as gaussian_blur's).
-        row = np.empty(side + 2 * R)
-        tmp = np.zeros((side + 2 * R, side))
-        for j in range(side + 2 * R):
-            yy = min(max(y0 + j - R, 0), H - 1)
-            for x in range(side + 2 * R):
-                row[x] = img[yy, min(max(x0 + x - R, 0), W - 1)]
-            for i in range(2 * R + 1):
-                for x in range(side):
-                    tmp[j, x] += k[i] * row[x + i]
-        acc = np.empty(side)
-        for y in range(side):
-            acc[:] = 0.0
-            for i in range(2 * R + 1):
-                for x in range(side):
-                    acc[x] += k[i] * tmp[y + i, x]
-            for x in range(side):
-                out[ty + y, tx + x] = acc[x]
-
-
+                 out: np.ndarray) -> None:
+    """The blur of each patch (kernel ``_make_blur_patches``), serial where small
+    (:data:`PARALLEL_MIN_NS`; about 0.3 ns per tap and pixel of both passes)."""
+    R = gaussian_taps(sigma).shape[0] // 2
+    work = 0.3 * origin.shape[0] * (2 * R + 1) * ((side + 2 * R) * side + side * side)
+    (_blur_patches_parallel if work >= PARALLEL_MIN_NS else _blur_patches_serial)(img, origin, tile, side, sigma, out)
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def grey_mean(img: np.ndarray, scale: float, lo: float, inv: float, out: np.ndarray) -> None:  # pragma: no cover
     """``out`` = (the mean of the first three channels of ``img`` (H, W, C) (the one channel
@@ -264,271 +290,307 @@ def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.n
     return va - vb - light, gxa - gxb, gya - gyb
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
-                    shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
-                    normal: np.ndarray, sens: np.ndarray) -> None:  # pragma: no cover - numba
-    """Move each point to where the image is point-symmetric through it: Gauss-Newton on the
-    translation t of ``sum_i (I(p + t + a_i) - I(p + t + b_i))^2`` over its ``m[k]`` pairs of
-    offsets ``a[k, i]``, ``b[k, i]`` (px; b the mirror image of a through the point on the
-    board's local map), bilinear image values with central-difference gradients. ``img`` is
-    the image smoothed with the separable kernel ``taps`` (odd length; ``[1.0]``: not
-    smoothed), which the covariance carries. ``shade[k]``: the gradient of the light across
-    point k (shade per px; zeros: none), taken off each pair's residual (linear light is not
-    point-symmetric).
+def _make_symmetry_refine(PARALLEL: int):
+    """:func:`symmetry_refine`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
 
-    Writes ``out[k]`` (NaN where a sample leaves the image, the normal matrix is singular or
-    it has not converged to ``tol`` px in ``iters`` steps), ``cov[k]`` = (xx, xy, yy) of the
-    point's covariance per unit white pixel noise (the linearised estimator's, through the
-    bilinear weights of both samples of every pair and the smoothing), and ``wres[k]``: the
-    white pixel noise that the final residuals would imply (their sum of squares over the sum
-    of the squared weights they carry, the smoothing's sum of squared weights included), and
-    ``normal[k]`` = (xx, xy, yy) of the normal matrix J^T J at the solution (its gradients are
-    read on the noisy image, so the noise adds to it: the caller weighs that share), and
-    ``sens[k]`` = (xx, xy, yx, yy) of sum_i J_i (a_i - b_i)^T: the point moves by
-    (J^T J)^-1 sens dg where the light's gradient given is off by dg."""
-    H, W = img.shape
-    R = taps.shape[0] // 2
-    t2 = 0.0
-    for i in range(taps.shape[0]):
-        t2 += taps[i] * taps[i]
-    for k in prange(p0.shape[0]):
-        out[k, 0] = np.nan
-        out[k, 1] = np.nan
-        cov[k, 0] = np.nan
-        cov[k, 1] = np.nan
-        cov[k, 2] = np.nan
-        wres[k] = np.nan
-        normal[k, 0] = np.nan
-        normal[k, 1] = np.nan
-        normal[k, 2] = np.nan
-        for j in range(4):
-            sens[k, j] = np.nan
-        n = m[k]
-        if n < 3:
-            continue
-        px = p0[k, 0]
-        py = p0[k, 1]
-        good = False
-        inside = True
-        for _it in range(iters):
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
+                        shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
+                        normal: np.ndarray, sens: np.ndarray) -> None:  # pragma: no cover - numba
+        """Move each point to where the image is point-symmetric through it: Gauss-Newton on the
+        translation t of ``sum_i (I(p + t + a_i) - I(p + t + b_i))^2`` over its ``m[k]`` pairs of
+        offsets ``a[k, i]``, ``b[k, i]`` (px; b the mirror image of a through the point on the
+        board's local map), bilinear image values with central-difference gradients. ``img`` is
+        the image smoothed with the separable kernel ``taps`` (odd length; ``[1.0]``: not
+        smoothed), which the covariance carries. ``shade[k]``: the gradient of the light across
+        point k (shade per px; zeros: none), taken off each pair's residual (linear light is not
+        point-symmetric).
+
+        Writes ``out[k]`` (NaN where a sample leaves the image, the normal matrix is singular or
+        it has not converged to ``tol`` px in ``iters`` steps), ``cov[k]`` = (xx, xy, yy) of the
+        point's covariance per unit white pixel noise (the linearised estimator's, through the
+        bilinear weights of both samples of every pair and the smoothing), and ``wres[k]``: the
+        white pixel noise that the final residuals would imply (their sum of squares over the sum
+        of the squared weights they carry, the smoothing's sum of squared weights included), and
+        ``normal[k]`` = (xx, xy, yy) of the normal matrix J^T J at the solution (its gradients are
+        read on the noisy image, so the noise adds to it: the caller weighs that share), and
+        ``sens[k]`` = (xx, xy, yx, yy) of sum_i J_i (a_i - b_i)^T: the point moves by
+        (J^T J)^-1 sens dg where the light's gradient given is off by dg."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        H, W = img.shape
+        R = taps.shape[0] // 2
+        t2 = 0.0
+        for i in range(taps.shape[0]):
+            t2 += taps[i] * taps[i]
+        for k in prange(p0.shape[0]):
+            out[k, 0] = np.nan
+            out[k, 1] = np.nan
+            cov[k, 0] = np.nan
+            cov[k, 1] = np.nan
+            cov[k, 2] = np.nan
+            wres[k] = np.nan
+            normal[k, 0] = np.nan
+            normal[k, 1] = np.nan
+            normal[k, 2] = np.nan
+            for j in range(4):
+                sens[k, j] = np.nan
+            n = m[k]
+            if n < 3:
+                continue
+            px = p0[k, 0]
+            py = p0[k, 1]
+            good = False
+            inside = True
+            for _it in range(iters):
+                sxx = 0.0
+                sxy = 0.0
+                syy = 0.0
+                rx = 0.0
+                ry = 0.0
+                for i in range(n):
+                    xa = px + a[k, i, 0]
+                    ya = py + a[k, i, 1]
+                    xb = px + b[k, i, 0]
+                    yb = py + b[k, i, 1]
+                    if (min(xa, xb) < 1.0 or max(xa, xb) > W - 3.0 or min(ya, yb) < 1.0 or max(ya, yb) > H - 3.0
+                            or not (xa == xa and xb == xb and ya == ya and yb == yb)):
+                        inside = False
+                        break
+                    r, jx, jy = _mirrored_pair(img, px, py, a, b, shade, k, i)
+                    sxx += jx * jx
+                    sxy += jx * jy
+                    syy += jy * jy
+                    rx += jx * r
+                    ry += jy * r
+                if not inside:
+                    break
+                det = sxx * syy - sxy * sxy
+                if not det > 1e-12 * (sxx + syy) * (sxx + syy):
+                    break
+                dx = -(syy * rx - sxy * ry) / det
+                dy = -(sxx * ry - sxy * rx) / det
+                px += dx
+                py += dy
+                if dx * dx + dy * dy < tol * tol:
+                    good = True
+                    break
+            if not good:
+                continue
+            # The covariance at the solution: t = -(J^T J)^-1 J^T r, r linear in the pixels through
+            # the bilinear weights, so Cov = M^-1 (sum_pix g g^T) M^-1 per unit noise, g the
+            # pixel's weight in J^T r. The pixels touched lie in the samples' bounding box.
+            xmin = 1e300
+            ymin = 1e300
+            xmax = -1e300
+            ymax = -1e300
+            for i in range(n):
+                xmin = min(xmin, px + a[k, i, 0], px + b[k, i, 0])
+                xmax = max(xmax, px + a[k, i, 0], px + b[k, i, 0])
+                ymin = min(ymin, py + a[k, i, 1], py + b[k, i, 1])
+                ymax = max(ymax, py + a[k, i, 1], py + b[k, i, 1])
+            if xmin < 1.0 or xmax > W - 3.0 or ymin < 1.0 or ymax > H - 3.0:
+                continue
+            bx = math.floor(xmin)
+            by = math.floor(ymin)
+            gw = math.floor(xmax) - bx + 2
+            gh = math.floor(ymax) - by + 2
+            g = np.zeros((gh, gw, 2))
             sxx = 0.0
             sxy = 0.0
             syy = 0.0
-            rx = 0.0
-            ry = 0.0
+            rr = 0.0
+            ww = 0.0
+            bxx = 0.0
+            bxy = 0.0
+            byx = 0.0
+            byy = 0.0
             for i in range(n):
                 xa = px + a[k, i, 0]
                 ya = py + a[k, i, 1]
                 xb = px + b[k, i, 0]
                 yb = py + b[k, i, 1]
-                if (min(xa, xb) < 1.0 or max(xa, xb) > W - 3.0 or min(ya, yb) < 1.0 or max(ya, yb) > H - 3.0
-                        or not (xa == xa and xb == xb and ya == ya and yb == yb)):
-                    inside = False
-                    break
                 r, jx, jy = _mirrored_pair(img, px, py, a, b, shade, k, i)
                 sxx += jx * jx
                 sxy += jx * jy
                 syy += jy * jy
-                rx += jx * r
-                ry += jy * r
-            if not inside:
-                break
+                rr += r * r
+                bxx += jx * (xa - xb)
+                bxy += jx * (ya - yb)
+                byx += jy * (xa - xb)
+                byy += jy * (ya - yb)
+                for s in range(2):
+                    xs = xa if s == 0 else xb
+                    ys = ya if s == 0 else yb
+                    sign = 1.0 if s == 0 else -1.0
+                    x0 = math.floor(xs)
+                    y0 = math.floor(ys)
+                    fx = xs - x0
+                    fy = ys - y0
+                    for j in range(2):
+                        wy = fy if j == 1 else 1.0 - fy
+                        for q in range(2):
+                            w = sign * wy * (fx if q == 1 else 1.0 - fx)
+                            ww += w * w
+                            g[y0 - by + j, x0 - bx + q, 0] += w * jx
+                            g[y0 - by + j, x0 - bx + q, 1] += w * jy
             det = sxx * syy - sxy * sxy
-            if not det > 1e-12 * (sxx + syy) * (sxx + syy):
-                break
-            dx = -(syy * rx - sxy * ry) / det
-            dy = -(sxx * ry - sxy * rx) / det
-            px += dx
-            py += dy
-            if dx * dx + dy * dy < tol * tol:
-                good = True
-                break
-        if not good:
-            continue
-        # The covariance at the solution: t = -(J^T J)^-1 J^T r, r linear in the pixels through
-        # the bilinear weights, so Cov = M^-1 (sum_pix g g^T) M^-1 per unit noise, g the
-        # pixel's weight in J^T r. The pixels touched lie in the samples' bounding box.
-        xmin = 1e300
-        ymin = 1e300
-        xmax = -1e300
-        ymax = -1e300
-        for i in range(n):
-            xmin = min(xmin, px + a[k, i, 0], px + b[k, i, 0])
-            xmax = max(xmax, px + a[k, i, 0], px + b[k, i, 0])
-            ymin = min(ymin, py + a[k, i, 1], py + b[k, i, 1])
-            ymax = max(ymax, py + a[k, i, 1], py + b[k, i, 1])
-        if xmin < 1.0 or xmax > W - 3.0 or ymin < 1.0 or ymax > H - 3.0:
-            continue
-        bx = math.floor(xmin)
-        by = math.floor(ymin)
-        gw = math.floor(xmax) - bx + 2
-        gh = math.floor(ymax) - by + 2
-        g = np.zeros((gh, gw, 2))
-        sxx = 0.0
-        sxy = 0.0
-        syy = 0.0
-        rr = 0.0
-        ww = 0.0
-        bxx = 0.0
-        bxy = 0.0
-        byx = 0.0
-        byy = 0.0
-        for i in range(n):
-            xa = px + a[k, i, 0]
-            ya = py + a[k, i, 1]
-            xb = px + b[k, i, 0]
-            yb = py + b[k, i, 1]
-            r, jx, jy = _mirrored_pair(img, px, py, a, b, shade, k, i)
-            sxx += jx * jx
-            sxy += jx * jy
-            syy += jy * jy
-            rr += r * r
-            bxx += jx * (xa - xb)
-            bxy += jx * (ya - yb)
-            byx += jy * (xa - xb)
-            byy += jy * (ya - yb)
-            for s in range(2):
-                xs = xa if s == 0 else xb
-                ys = ya if s == 0 else yb
-                sign = 1.0 if s == 0 else -1.0
-                x0 = math.floor(xs)
-                y0 = math.floor(ys)
-                fx = xs - x0
-                fy = ys - y0
-                for j in range(2):
-                    wy = fy if j == 1 else 1.0 - fy
-                    for q in range(2):
-                        w = sign * wy * (fx if q == 1 else 1.0 - fx)
-                        ww += w * w
-                        g[y0 - by + j, x0 - bx + q, 0] += w * jx
-                        g[y0 - by + j, x0 - bx + q, 1] += w * jy
-        det = sxx * syy - sxy * sxy
-        if not det > 0.0:
-            continue
-        ixx = syy / det
-        ixy = -sxy / det
-        iyy = sxx / det
-        # Through the smoothing: a raw pixel's weight is the smoothed grid's weights convolved
-        # with the (symmetric) taps, over the grid grown by the kernel's radius.
-        tmp = np.zeros((gh, gw + 2 * R, 2))
-        for yy in range(gh):
-            for xx in range(gw):
-                for i in range(2 * R + 1):
-                    tmp[yy, xx + i, 0] += taps[i] * g[yy, xx, 0]
-                    tmp[yy, xx + i, 1] += taps[i] * g[yy, xx, 1]
-        cxx = 0.0
-        cxy = 0.0
-        cyy = 0.0
-        for yy in range(gh + 2 * R):
-            for xx in range(gw + 2 * R):
-                g0 = 0.0
-                g1 = 0.0
-                for i in range(2 * R + 1):
-                    j = yy - i
-                    if 0 <= j < gh:
-                        g0 += taps[i] * tmp[j, xx, 0]
-                        g1 += taps[i] * tmp[j, xx, 1]
-                u = ixx * g0 + ixy * g1
-                v = ixy * g0 + iyy * g1
-                cxx += u * u
-                cxy += u * v
-                cyy += v * v
-        out[k, 0] = px
-        out[k, 1] = py
-        cov[k, 0] = cxx
-        cov[k, 1] = cxy
-        cov[k, 2] = cyy
-        wres[k] = math.sqrt(rr / (ww * t2 * t2)) if ww > 0.0 else np.nan
-        normal[k, 0] = sxx
-        normal[k, 1] = sxy
-        normal[k, 2] = syy
-        sens[k, 0] = bxx
-        sens[k, 1] = bxy
-        sens[k, 2] = byx
-        sens[k, 3] = byy
+            if not det > 0.0:
+                continue
+            ixx = syy / det
+            ixy = -sxy / det
+            iyy = sxx / det
+            # Through the smoothing: a raw pixel's weight is the smoothed grid's weights convolved
+            # with the (symmetric) taps, over the grid grown by the kernel's radius.
+            tmp = np.zeros((gh, gw + 2 * R, 2))
+            for yy in range(gh):
+                for xx in range(gw):
+                    for i in range(2 * R + 1):
+                        tmp[yy, xx + i, 0] += taps[i] * g[yy, xx, 0]
+                        tmp[yy, xx + i, 1] += taps[i] * g[yy, xx, 1]
+            cxx = 0.0
+            cxy = 0.0
+            cyy = 0.0
+            for yy in range(gh + 2 * R):
+                for xx in range(gw + 2 * R):
+                    g0 = 0.0
+                    g1 = 0.0
+                    for i in range(2 * R + 1):
+                        j = yy - i
+                        if 0 <= j < gh:
+                            g0 += taps[i] * tmp[j, xx, 0]
+                            g1 += taps[i] * tmp[j, xx, 1]
+                    u = ixx * g0 + ixy * g1
+                    v = ixy * g0 + iyy * g1
+                    cxx += u * u
+                    cxy += u * v
+                    cyy += v * v
+            out[k, 0] = px
+            out[k, 1] = py
+            cov[k, 0] = cxx
+            cov[k, 1] = cxy
+            cov[k, 2] = cyy
+            wres[k] = math.sqrt(rr / (ww * t2 * t2)) if ww > 0.0 else np.nan
+            normal[k, 0] = sxx
+            normal[k, 1] = sxy
+            normal[k, 2] = syy
+            sens[k, 0] = bxx
+            sens[k, 1] = bxy
+            sens[k, 2] = byx
+            sens[k, 3] = byy
+
+    return symmetry_refine
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndarray, cvar: float, q: np.ndarray,
-               sigma: np.ndarray, resid: np.ndarray) -> None:  # pragma: no cover - numba
-    """The saddle fit of :func:`camkit.target.checkerboard._saddle_fit`, point by point: the
-    quadratic ``pinv`` (6, (2r+1)^2: the pseudo-inverse of its design matrix, columns dx^2,
-    dx dy, dy^2, dx, dy, 1 over the window's offsets in row-major order) fitted on the
-    (2r+1)^2 window about each estimate, sampled bicubically (Keys, a = -0.5, edges
-    replicated, as :func:`camkit._kernels.lattice.sample_points`: the window's offsets are
-    whole pixels, so each row of four taps is summed once per window row); ``iters`` steps
-    to the quadratic's saddle, each at most a pixel either way (none where it is flat), then
-    the fit again. Writes the place ``q[k]``, its sigma ``sigma[k]`` (the residuals' variance
-    times ``cvar``, the (3, 3) element of (A^T A)^-1, through the saddle's equations; NaN
-    where the saddle lies half a pixel or more from the window's centre), and the residuals'
-    standard deviation ``resid[k]`` (NaN where the sigma is); all NaN for an estimate that is
-    not finite."""
-    H, W = s.shape
-    n = 2 * r + 1
-    N = n * n
-    for k in prange(pts.shape[0]):
-        hrow = np.empty((n + 3, n))
-        vals = np.empty(N)
-        c = np.zeros(6)
-        qx = pts[k, 0]
-        qy = pts[k, 1]
-        if not (math.isfinite(qx) and math.isfinite(qy)):  # no place to fit at
-            q[k, 0] = q[k, 1] = sigma[k] = resid[k] = np.nan
-            continue
-        for it in range(iters + 1):
-            fx = math.floor(qx)
-            fy = math.floor(qy)
-            wx = keys4(qx - fx, -0.5)
-            wy = keys4(qy - fy, -0.5)
-            ix = int(fx) - r - 1
-            iy = int(fy) - r - 1
-            for j in range(n + 3):
-                yy = min(max(iy + j, 0), H - 1)
-                for i in range(n):
-                    acc = 0.0
-                    for m in range(4):
-                        xx = min(max(ix + i + m, 0), W - 1)
-                        acc += wx[m] * s[yy, xx]
-                    hrow[j, i] = acc
-            for j in range(n):
-                for i in range(n):
-                    acc = 0.0
-                    for m in range(4):
-                        acc += wy[m] * hrow[j + m, i]
-                    vals[j * n + i] = acc
-            for t in range(6):
-                acc = 0.0
-                for i in range(N):
-                    acc += pinv[t, i] * vals[i]
-                c[t] = acc
-            a, b, cc, d, e = c[0], c[1], c[2], c[3], c[4]
-            det = 4.0 * a * cc - b * b
-            sx = (-2.0 * cc * d + b * e) / det
-            sy = (b * d - 2.0 * a * e) / det
-            if it == iters:
-                ss = 0.0
+_symmetry_refine_serial, _symmetry_refine_parallel = _make_symmetry_refine(0), _make_symmetry_refine(1)
+
+
+def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.ndarray, b: np.ndarray, m: np.ndarray,
+                    shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
+                    normal: np.ndarray, sens: np.ndarray) -> None:
+    """Each point moved to its point of symmetry (kernel ``_make_symmetry_refine``), serial
+    where small (:data:`PARALLEL_MIN_NS`; about 50 ns per pair and step at most)."""
+    work = 50.0 * float(np.sum(m)) * iters
+    (_symmetry_refine_parallel if work >= PARALLEL_MIN_NS else _symmetry_refine_serial)(
+        img, taps, p0, a, b, m, shade, iters, tol, out, cov, wres, normal, sens)
+def _make_saddle_fit(PARALLEL: int):
+    """:func:`saddle_fit`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndarray, cvar: float, q: np.ndarray,
+                   sigma: np.ndarray, resid: np.ndarray) -> None:  # pragma: no cover - numba
+        """The saddle fit of :func:`camkit.target.checkerboard._saddle_fit`, point by point: the
+        quadratic ``pinv`` (6, (2r+1)^2: the pseudo-inverse of its design matrix, columns dx^2,
+        dx dy, dy^2, dx, dy, 1 over the window's offsets in row-major order) fitted on the
+        (2r+1)^2 window about each estimate, sampled bicubically (Keys, a = -0.5, edges
+        replicated, as :func:`camkit._kernels.lattice.sample_points`: the window's offsets are
+        whole pixels, so each row of four taps is summed once per window row); ``iters`` steps
+        to the quadratic's saddle, each at most a pixel either way (none where it is flat), then
+        the fit again. Writes the place ``q[k]``, its sigma ``sigma[k]`` (the residuals' variance
+        times ``cvar``, the (3, 3) element of (A^T A)^-1, through the saddle's equations; NaN
+        where the saddle lies half a pixel or more from the window's centre), and the residuals'
+        standard deviation ``resid[k]`` (NaN where the sigma is); all NaN for an estimate that is
+        not finite."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        H, W = s.shape
+        n = 2 * r + 1
+        N = n * n
+        for k in prange(pts.shape[0]):
+            hrow = np.empty((n + 3, n))
+            vals = np.empty(N)
+            c = np.zeros(6)
+            qx = pts[k, 0]
+            qy = pts[k, 1]
+            if not (math.isfinite(qx) and math.isfinite(qy)):  # no place to fit at
+                q[k, 0] = q[k, 1] = sigma[k] = resid[k] = np.nan
+                continue
+            for it in range(iters + 1):
+                fx = math.floor(qx)
+                fy = math.floor(qy)
+                wx = keys4(qx - fx, -0.5)
+                wy = keys4(qy - fy, -0.5)
+                ix = int(fx) - r - 1
+                iy = int(fy) - r - 1
+                for j in range(n + 3):
+                    yy = min(max(iy + j, 0), H - 1)
+                    for i in range(n):
+                        acc = 0.0
+                        for m in range(4):
+                            xx = min(max(ix + i + m, 0), W - 1)
+                            acc += wx[m] * s[yy, xx]
+                        hrow[j, i] = acc
                 for j in range(n):
                     for i in range(n):
-                        dx = float(i - r)
-                        dy = float(j - r)
-                        f = a * dx * dx + b * dx * dy + cc * dy * dy + d * dx + e * dy + c[5]
-                        rr = vals[j * n + i] - f
-                        ss += rr * rr
-                var = ss / max(N - 6, 1)
-                h11, h12, h22 = 2.0 * cc / det, -b / det, 2.0 * a / det
-                sg = math.sqrt(0.5 * var * cvar * (h11 * h11 + 2.0 * h12 * h12 + h22 * h22))
-                q[k, 0] = qx
-                q[k, 1] = qy
-                sigma[k] = sg if math.hypot(sx, sy) < 0.5 else np.nan
-                resid[k] = math.sqrt(var) if math.isfinite(sigma[k]) else np.nan
-                break
-            sx = 0.0 if math.isnan(sx) else min(max(sx, -1.0), 1.0)
-            sy = 0.0 if math.isnan(sy) else min(max(sy, -1.0), 1.0)
-            qx += sx
-            qy += sy
+                        acc = 0.0
+                        for m in range(4):
+                            acc += wy[m] * hrow[j + m, i]
+                        vals[j * n + i] = acc
+                for t in range(6):
+                    acc = 0.0
+                    for i in range(N):
+                        acc += pinv[t, i] * vals[i]
+                    c[t] = acc
+                a, b, cc, d, e = c[0], c[1], c[2], c[3], c[4]
+                det = 4.0 * a * cc - b * b
+                sx = (-2.0 * cc * d + b * e) / det
+                sy = (b * d - 2.0 * a * e) / det
+                if it == iters:
+                    ss = 0.0
+                    for j in range(n):
+                        for i in range(n):
+                            dx = float(i - r)
+                            dy = float(j - r)
+                            f = a * dx * dx + b * dx * dy + cc * dy * dy + d * dx + e * dy + c[5]
+                            rr = vals[j * n + i] - f
+                            ss += rr * rr
+                    var = ss / max(N - 6, 1)
+                    h11, h12, h22 = 2.0 * cc / det, -b / det, 2.0 * a / det
+                    sg = math.sqrt(0.5 * var * cvar * (h11 * h11 + 2.0 * h12 * h12 + h22 * h22))
+                    q[k, 0] = qx
+                    q[k, 1] = qy
+                    sigma[k] = sg if math.hypot(sx, sy) < 0.5 else np.nan
+                    resid[k] = math.sqrt(var) if math.isfinite(sigma[k]) else np.nan
+                    break
+                sx = 0.0 if math.isnan(sx) else min(max(sx, -1.0), 1.0)
+                sy = 0.0 if math.isnan(sy) else min(max(sy, -1.0), 1.0)
+                qx += sx
+                qy += sy
+
+    return saddle_fit
 
 
+_saddle_fit_serial, _saddle_fit_parallel = _make_saddle_fit(0), _make_saddle_fit(1)
+
+
+def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndarray, cvar: float, q: np.ndarray,
+               sigma: np.ndarray, resid: np.ndarray) -> None:
+    """The saddle fit of each point (kernel ``_make_saddle_fit``), serial where small
+    (:data:`PARALLEL_MIN_NS`; about 3 ns per tap of a window row, per step)."""
+    n = 2 * r + 1
+    work = 3.0 * pts.shape[0] * (iters + 1) * ((n + 3) * n + 2 * n * n)
+    (_saddle_fit_parallel if work >= PARALLEL_MIN_NS else _saddle_fit_serial)(s, pts, r, iters, pinv, cvar, q,
+                                                                               sigma, resid)
 @njit(cache=True, nogil=True, error_model="numpy")
 def _patch_grad(s: np.ndarray, x0: int, y0: int, side: int, i: int, j: int) -> tuple[float, float]:  # pragma: no cover
     """Central differences of ``s`` at pixel (x0 + i, y0 + j) of the patch of ``side`` pixels

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from camkit._kernels.calib import dlt_normal
+from camkit._kernels.detect import PARALLEL_MIN_NS
 from camkit._kernels.lattice import bilinear
 
 #: :func:`refine_quads`: a side's edge found farther than this from the line through all of them
@@ -362,56 +363,71 @@ def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.n
     stats[g, 5] = 1
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
-    """``out[k]`` (3, 3): the homography taking ``src[k]`` (P, 2) to ``dst[k]`` (P, 2), P >= 4,
-    by the normalised DLT (Hartley and Zisserman, alg. 4.2; the normal matrix from
-    :func:`camkit._kernels.calib.dlt_normal`) in its inhomogeneous form: h33 = 1 in the
-    normalised frames (the source centroid is their origin and maps to a finite point), the
-    other eight from the 8 x 8 normal equations by Gaussian elimination with partial
-    pivoting; NaN where the points coincide or the system is singular (collinear points)."""
-    K, P = src.shape[0], src.shape[1]
-    for k in prange(K):
-        M, Ts, Td, ok = dlt_normal(src[k], dst[k])
-        if not ok:
-            out[k, :, :] = np.nan
-            continue
-        for c in range(8):  # elimination with partial pivoting on [M[:8, :8] | -M[:8, 8]]
-            piv = c
-            for r in range(c + 1, 8):
-                if abs(M[r, c]) > abs(M[piv, c]):
-                    piv = r
-            if not abs(M[piv, c]) > 1e-10 * P:
-                ok = False
-                break
-            if piv != c:
-                for j in range(9):
-                    M[c, j], M[piv, j] = M[piv, j], M[c, j]
-            for r in range(c + 1, 8):
-                f = M[r, c] / M[c, c]
-                if f != 0.0:
-                    for j in range(c, 9):
-                        M[r, j] -= f * M[c, j]
-        if not ok:
-            out[k, :, :] = np.nan
-            continue
-        h = np.empty(9)
-        h[8] = 1.0
-        for c in range(7, -1, -1):
-            acc = -M[c, 8]
-            for j in range(c + 1, 8):
-                acc -= M[c, j] * h[j]
-            h[c] = acc / M[c, c]
-        # H = Td^-1 Hn Ts; Td = [[t, 0, -t dx], [0, t, -t dy], [0, 0, 1]] inverts in closed form.
-        Hn = h.reshape(3, 3) @ Ts
-        t = Td[0, 0]
-        dx, dy = -Td[0, 2] / t, -Td[1, 2] / t
-        for c in range(3):
-            out[k, 0, c] = Hn[0, c] / t + dx * Hn[2, c]
-            out[k, 1, c] = Hn[1, c] / t + dy * Hn[2, c]
-            out[k, 2, c] = Hn[2, c]
+def _make_fit_homographies(PARALLEL: int):
+    """:func:`fit_homographies`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+        """``out[k]`` (3, 3): the homography taking ``src[k]`` (P, 2) to ``dst[k]`` (P, 2), P >= 4,
+        by the normalised DLT (Hartley and Zisserman, alg. 4.2; the normal matrix from
+        :func:`camkit._kernels.calib.dlt_normal`) in its inhomogeneous form: h33 = 1 in the
+        normalised frames (the source centroid is their origin and maps to a finite point), the
+        other eight from the 8 x 8 normal equations by Gaussian elimination with partial
+        pivoting; NaN where the points coincide or the system is singular (collinear points)."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        K, P = src.shape[0], src.shape[1]
+        for k in prange(K):
+            M, Ts, Td, ok = dlt_normal(src[k], dst[k])
+            if not ok:
+                out[k, :, :] = np.nan
+                continue
+            for c in range(8):  # elimination with partial pivoting on [M[:8, :8] | -M[:8, 8]]
+                piv = c
+                for r in range(c + 1, 8):
+                    if abs(M[r, c]) > abs(M[piv, c]):
+                        piv = r
+                if not abs(M[piv, c]) > 1e-10 * P:
+                    ok = False
+                    break
+                if piv != c:
+                    for j in range(9):
+                        M[c, j], M[piv, j] = M[piv, j], M[c, j]
+                for r in range(c + 1, 8):
+                    f = M[r, c] / M[c, c]
+                    if f != 0.0:
+                        for j in range(c, 9):
+                            M[r, j] -= f * M[c, j]
+            if not ok:
+                out[k, :, :] = np.nan
+                continue
+            h = np.empty(9)
+            h[8] = 1.0
+            for c in range(7, -1, -1):
+                acc = -M[c, 8]
+                for j in range(c + 1, 8):
+                    acc -= M[c, j] * h[j]
+                h[c] = acc / M[c, c]
+            # H = Td^-1 Hn Ts; Td = [[t, 0, -t dx], [0, t, -t dy], [0, 0, 1]] inverts in closed form.
+            Hn = h.reshape(3, 3) @ Ts
+            t = Td[0, 0]
+            dx, dy = -Td[0, 2] / t, -Td[1, 2] / t
+            for c in range(3):
+                out[k, 0, c] = Hn[0, c] / t + dx * Hn[2, c]
+                out[k, 1, c] = Hn[1, c] / t + dy * Hn[2, c]
+                out[k, 2, c] = Hn[2, c]
+
+    return fit_homographies
 
 
+_fit_homographies_serial, _fit_homographies_parallel = _make_fit_homographies(0), _make_fit_homographies(1)
+
+
+def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:
+    """Each point set's homography (kernel ``_make_fit_homographies``), serial where small
+    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; about 0.8 us a set and 60 ns a point)."""
+    work = src.shape[0] * (800.0 + 60.0 * src.shape[1])
+    (_fit_homographies_parallel if work >= PARALLEL_MIN_NS else _fit_homographies_serial)(src, dst, out)
 @njit(cache=True, nogil=True, error_model="numpy")
 def unique_quads(quads: np.ndarray, centre: np.ndarray, span: np.ndarray, order: np.ndarray,
                  keep: np.ndarray) -> None:  # pragma: no cover - numba
@@ -622,42 +638,59 @@ def _pairwise_sum(a: np.ndarray, i0: int, n: int) -> float:  # pragma: no cover 
     return s
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndarray, n_cells: int, m: int,
-               cell: np.ndarray, white: np.ndarray) -> None:  # pragma: no cover - numba
-    """The cells of each quad's marker and the white margin round it, in one pass: point ``j``
-    of ``pts`` (P, 2; the first ``n_cells * m``, each cell's ``m`` points in turn, then the
-    margin's) taken through homography ``Hs[k]`` and sampled bilinearly (edges replicated)
-    on ``img`` stretched by ``a * v + b``; ``cell[k, c]`` the mean of cell ``c``'s samples,
-    ``white[k]`` the median of the margin's. A homography's row that is not finite samples
-    at NaN's place (NaN out): the caller refuses those quads."""
-    K = Hs.shape[0]
-    P = pts.shape[0]
-    for k in prange(K):
-        v = np.empty(P)
-        for j in range(P):
-            x, y = pts[j, 0], pts[j, 1]
-            X = Hs[k, 0, 0] * x + Hs[k, 0, 1] * y + Hs[k, 0, 2]
-            Y = Hs[k, 1, 0] * x + Hs[k, 1, 1] * y + Hs[k, 1, 2]
-            Z = Hs[k, 2, 0] * x + Hs[k, 2, 1] * y + Hs[k, 2, 2]
-            px, py = X / Z, Y / Z
-            if np.isfinite(px) and np.isfinite(py):
-                v[j] = bilinear(img, px, py) * a + b
+def _make_read_cells(PARALLEL: int):
+    """:func:`read_cells`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndarray, n_cells: int, m: int,
+                   cell: np.ndarray, white: np.ndarray) -> None:  # pragma: no cover - numba
+        """The cells of each quad's marker and the white margin round it, in one pass: point ``j``
+        of ``pts`` (P, 2; the first ``n_cells * m``, each cell's ``m`` points in turn, then the
+        margin's) taken through homography ``Hs[k]`` and sampled bilinearly (edges replicated)
+        on ``img`` stretched by ``a * v + b``; ``cell[k, c]`` the mean of cell ``c``'s samples,
+        ``white[k]`` the median of the margin's. A homography's row that is not finite samples
+        at NaN's place (NaN out): the caller refuses those quads."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        K = Hs.shape[0]
+        P = pts.shape[0]
+        for k in prange(K):
+            v = np.empty(P)
+            for j in range(P):
+                x, y = pts[j, 0], pts[j, 1]
+                X = Hs[k, 0, 0] * x + Hs[k, 0, 1] * y + Hs[k, 0, 2]
+                Y = Hs[k, 1, 0] * x + Hs[k, 1, 1] * y + Hs[k, 1, 2]
+                Z = Hs[k, 2, 0] * x + Hs[k, 2, 1] * y + Hs[k, 2, 2]
+                px, py = X / Z, Y / Z
+                if np.isfinite(px) and np.isfinite(py):
+                    v[j] = bilinear(img, px, py) * a + b
+                else:
+                    v[j] = np.nan
+            for c in range(n_cells):
+                cell[k, c] = _pairwise_sum(v, c * m, m) / m
+            r = v[n_cells * m:].copy()
+            r.sort()  # NaN last, as NumPy's median (which returns NaN where any is)
+            q = r.shape[0]
+            if q == 0 or np.isnan(r[q - 1]):
+                white[k] = np.nan
+            elif q % 2:
+                white[k] = r[q // 2]
             else:
-                v[j] = np.nan
-        for c in range(n_cells):
-            cell[k, c] = _pairwise_sum(v, c * m, m) / m
-        r = v[n_cells * m:].copy()
-        r.sort()  # NaN last, as NumPy's median (which returns NaN where any is)
-        q = r.shape[0]
-        if q == 0 or np.isnan(r[q - 1]):
-            white[k] = np.nan
-        elif q % 2:
-            white[k] = r[q // 2]
-        else:
-            white[k] = (r[q // 2 - 1] + r[q // 2]) / 2.0
+                white[k] = (r[q // 2 - 1] + r[q // 2]) / 2.0
+
+    return read_cells
 
 
+_read_cells_serial, _read_cells_parallel = _make_read_cells(0), _make_read_cells(1)
+
+
+def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndarray, n_cells: int, m: int,
+               cell: np.ndarray, white: np.ndarray) -> None:
+    """Each quad's cells and margin (kernel ``_make_read_cells``), serial where small
+    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; about 9 ns a sample)."""
+    work = 9.0 * Hs.shape[0] * pts.shape[0]
+    (_read_cells_parallel if work >= PARALLEL_MIN_NS else _read_cells_serial)(img, a, b, Hs, pts, n_cells, m, cell,
+                                                                             white)
 @njit(cache=True, nogil=True, error_model="numpy")
 def _popcount(v: np.uint64) -> int:  # pragma: no cover - numba
     """The set bits of ``v`` (the SWAR count: pairs, nibbles, then bytes summed by a multiply)."""

@@ -377,3 +377,57 @@ def test_quads_found_on_threads_side_by_side_are_those_found_one_by_one():
         together = list(ex.map(lambda j: find_quads(j[0], 10, opening=j[1]), jobs))
     for a, b in zip(alone, together, strict=True):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_for_bit():
+    """Saddle fits, patch blurs, homographies and cell readings run serially where their work is
+    small (a parallel loop's wake-up costs more): the serial twin of each kernel gives what the
+    parallel one gives, bit for bit, and the dispatcher picks serial for a few points and
+    parallel for many."""
+    from camkit._kernels import detect as dk
+    from camkit._kernels import markers as mk
+    from camkit.target.checkerboard import _saddle_design
+
+    rng = np.random.default_rng(6)
+    img = rng.random((200, 260))
+    r, iters = 4, 6
+    pinv, cvar = _saddle_design(r)
+    pts = rng.uniform(20, 180, (40, 2))
+    outs = []
+    for kern in (dk._saddle_fit_serial, dk._saddle_fit_parallel):
+        q, sg, rs = np.empty((40, 2)), np.empty(40), np.empty(40)
+        kern(img, pts, r, iters, pinv, cvar, q, sg, rs)
+        outs.append((q, sg, rs))
+    origin = rng.integers(-5, 190, (12, 2))
+    tile = np.stack([np.arange(12) * 21, np.zeros(12, np.int64)], axis=1)
+    for kern in (dk._blur_patches_serial, dk._blur_patches_parallel):
+        mosaic = np.zeros((21, 21 * 12))
+        kern(img, origin, tile, 21, 2.0, mosaic)
+        outs.append((mosaic,))
+    src = rng.random((30, 6, 2)) * 50
+    for kern in (mk._fit_homographies_serial, mk._fit_homographies_parallel):
+        h = np.empty((30, 3, 3))
+        kern(src, src @ [[1.1, 0.1], [-0.05, 0.9]] + 7.0, h)
+        outs.append((h,))
+    Hs = np.tile(np.eye(3), (25, 1, 1))
+    Hs[:, :2, 2] = rng.uniform(10, 150, (25, 2))
+    cells_at = rng.random((68, 2)) * 8
+    for kern in (mk._read_cells_serial, mk._read_cells_parallel):
+        cell, white = np.empty((25, 64)), np.empty(25)
+        kern(img, 1.0, 0.0, Hs, cells_at, 64, 1, cell, white)
+        outs.append((cell, white))
+    for serial, parallel in zip(outs[::2], outs[1::2], strict=True):
+        for a, b in zip(serial, parallel, strict=True):
+            np.testing.assert_array_equal(a, b)
+    # The dispatch: few points serial, many parallel.
+    calls = []
+    orig = dk._saddle_fit_serial, dk._saddle_fit_parallel
+    try:
+        dk._saddle_fit_serial = lambda *a: calls.append("serial")
+        dk._saddle_fit_parallel = lambda *a: calls.append("parallel")
+        for n in (3, 3000):
+            p = np.zeros((n, 2))
+            dk.saddle_fit(img, p, r, iters, pinv, cvar, p.copy(), np.empty(n), np.empty(n))
+    finally:
+        dk._saddle_fit_serial, dk._saddle_fit_parallel = orig
+    assert calls == ["serial", "parallel"]
