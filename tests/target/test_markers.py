@@ -431,3 +431,27 @@ def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_f
     finally:
         dk._saddle_fit_serial, dk._saddle_fit_parallel = orig
     assert calls == ["serial", "parallel"]
+
+
+def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
+    """dark_mask against its definition in NumPy: each pixel against the mean of g over its
+    (2r+1)^2 window clipped at the image's borders, less c; windows inside a row (the kernel's
+    vectorised loop) and clipped ones, radii from 1 to wider than the image."""
+    from camkit._kernels import markers as mk
+
+    rng = np.random.default_rng(9)
+    for H, W in ((37, 53), (60, 8)):
+        g = rng.random((H, W))
+        ii = np.empty((H + 1, W + 1))
+        mk.integral(g, ii)
+        np.testing.assert_allclose(ii[1:, 1:], g.cumsum(0).cumsum(1), rtol=1e-12)
+        ys, xs = np.mgrid[0:H, 0:W]
+        for r in (1, 3, 10, 70):
+            y0, y1 = np.maximum(ys - r, 0), np.minimum(ys + r + 1, H)
+            x0, x1 = np.maximum(xs - r, 0), np.minimum(xs + r + 1, W)
+            mean = np.array([[g[a:b, c:d].mean() for a, b, c, d in zip(*row, strict=True)]
+                             for row in zip(y0, y1, x0, x1, strict=True)])
+            out = np.empty((H, W), dtype=bool)
+            mk.dark_mask(g, ii, r, 0.05, out)
+            sure = np.abs(g - (mean - 0.05)) > 1e-9  # (a tie's side is the rounding's)
+            np.testing.assert_array_equal(out[sure], (g < mean - 0.05)[sure])
