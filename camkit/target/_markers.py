@@ -241,26 +241,29 @@ def _pool() -> ThreadPoolExecutor:
 
 _SCRATCH = threading.local()
 
-#: :func:`_scratch` keeps a buffer of at most this many bytes (a 12 MP image's marker level,
-#: 1000 x 750, needs 6 MB for its integral image); a larger one is made afresh each time.
+#: :func:`_scratch` keeps at most this many bytes per thread (a 12 MP image's marker level,
+#: 1000 x 750, needs 6 MB for its integral image and 0.75 MB a mask); what does not fit is made
+#: afresh each time.
 _SCRATCH_MAX_BYTES = 16 << 20
 
 
 def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
     """A work array of ``shape`` (contents undefined) from this thread's buffer ``name``, kept
-    between calls where it is small enough (:data:`_SCRATCH_MAX_BYTES`): a fresh allocation's
-    pages are faulted in as they are first written, which made :func:`find_quads`'s integral
-    image and masks take two to three times as long inside a detection as when timed alone
-    (0.95 against 0.31 ms at 640 x 480). Grows where a larger one is asked for; the arrays of
-    one call of :func:`find_quads` are all its own (one name each)."""
+    between calls while this thread's buffers fit in :data:`_SCRATCH_MAX_BYTES`: a fresh
+    allocation's pages are faulted in as they are first written, which made
+    :func:`find_quads`'s integral image and masks take two to three times as long inside a
+    detection as when timed alone (0.95 against 0.31 ms at 640 x 480). Grows where a larger
+    one is asked for; the arrays of one call of :func:`find_quads` are all its own (one name
+    each)."""
     n = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    if n > _SCRATCH_MAX_BYTES:
-        return np.empty(shape, dtype=dtype)
     bufs = getattr(_SCRATCH, "bufs", None)
     if bufs is None:
         bufs = _SCRATCH.bufs = {}
     buf = bufs.get(name)
     if buf is None or buf.size < n:
+        kept = sum(b.size for k, b in bufs.items() if k != name)
+        if kept + n > _SCRATCH_MAX_BYTES:
+            return np.empty(shape, dtype=dtype)
         buf = bufs[name] = np.empty(n, dtype=np.uint8)
     return buf[:n].view(dtype).reshape(shape)
 

@@ -455,3 +455,32 @@ def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
             mk.dark_mask(g, ii, r, 0.05, out)
             sure = np.abs(g - (mean - 0.05)) > 1e-9  # (a tie's side is the rounding's)
             np.testing.assert_array_equal(out[sure], (g < mean - 0.05)[sure])
+
+
+def test_the_buffers_kept_per_thread_stay_under_their_bound():
+    """find_quads' work arrays are kept per thread up to _SCRATCH_MAX_BYTES in all: asked for
+    more (a 12 MP image read at full resolution), they are made afresh and not kept; each name
+    is its own memory."""
+    import threading
+
+    from camkit.target import _markers as mk
+
+    def kept() -> int:
+        return sum(b.size for b in getattr(mk._SCRATCH, "bufs", {}).values())
+
+    def work(out: list) -> None:
+        a = mk._scratch("integral", (481, 641), np.float64)
+        b = mk._scratch("mask0", (480, 640), np.bool_)
+        a[:] = 1.0
+        b[:] = False
+        assert a.shape == (481, 641) and b.shape == (480, 640) and (a == 1.0).all()  # no overlap
+        big = [mk._scratch(f"mask{i}", (3000, 4000), np.bool_) for i in range(1, 4)]
+        ii = mk._scratch("integral", (3001, 4001), np.float64)
+        assert all(m.shape == (3000, 4000) for m in big) and ii.shape == (3001, 4001)
+        out.append(kept())
+
+    sizes: list = []
+    t = threading.Thread(target=work, args=(sizes,))  # a fresh thread: its own, empty buffers
+    t.start()
+    t.join()
+    assert 0 < sizes[0] <= mk._SCRATCH_MAX_BYTES
