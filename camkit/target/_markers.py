@@ -437,8 +437,8 @@ class _Pyramid:
         return self._n
 
     def level(self, k: int) -> np.ndarray:
-        """Level ``k``: from level ``k - 1`` where made, else from level ``k - 2`` where made (in
-        one pass), else from level ``k - 1`` made so."""
+        """Level ``k``, made once: from level ``k - 1`` where that is made; else in one pass
+        from level ``k - 2`` where that is made; else from level ``k - 1``, made first."""
         if k not in self._levels:
             if k - 1 not in self._levels and k - 2 in self._levels:
                 src = self._levels[k - 2]
