@@ -602,17 +602,17 @@ def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float
     rim = (cx < border) | (cy < border) | (cx >= n - border) | (cy >= n - border)
     pts = np.concatenate([np.stack([cx[rim] + 0.5, cy[rim] + 0.5], axis=-1),
                           [[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]]])
-    p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        px = p[:, :, :2] / p[:, :, 2:]
-    vals = _sample(g, np.ascontiguousarray(px[:, :, 0].ravel()), np.ascontiguousarray(px[:, :, 1].ravel()),
-                   "bilinear").reshape(len(quads), len(pts))
     r = int(rim.sum())
-    white = np.median(vals[:, r:], axis=1)
-    black = np.median(vals[:, :r], axis=1)
+    # One sample a rim cell, and the margin's median (kernel read_cells, a cell of one point).
+    vals, white = np.empty((len(quads), r)), np.empty(len(quads))
+    raw = isinstance(g, RawGrey)
+    markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64), g.a if raw else 1.0,
+                               g.b if raw else 0.0, np.ascontiguousarray(Hs), np.ascontiguousarray(pts), r, 1, vals,
+                               white)
+    black = np.median(vals, axis=1)
     t = 0.5 * (white + black)
     with np.errstate(invalid="ignore"):
-        return ok & (white - black > contrast) & (np.mean(vals[:, :r] < t[:, None], axis=1) >= _RIM_TO_REFINE)
+        return ok & (white - black > contrast) & (np.mean(vals < t[:, None], axis=1) >= _RIM_TO_REFINE)
 
 
 def _read_refined(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, rimmed: np.ndarray,
