@@ -12,10 +12,9 @@ from camkit._kernels.remap import keys4
 #: The parallel kernels below that a detection hands a few points, patches or quads at a time
 #: run serially where their work (serial, estimated from their sizes) is under this many ns:
 #: a parallel loop wakes the OpenMP pool's workers, which sleep between loops
-#: (``OMP_WAIT_POLICY=PASSIVE``, camkit/__init__.py), and on the 2-core machine a wake-up cost
-#: 66 us, more than the work of most such calls (about 30 of them in a ChArUco detection of
-#: a 640 x 480 photo). The per-unit costs in the estimates were measured there
-#: (benchmarks/notes.md, forty-sixth session).
+#: (``OMP_WAIT_POLICY=PASSIVE``, camkit/__init__.py), and a wake-up costs more than the work of
+#: most such calls. The wake-up's cost and the per-unit costs in the estimates were measured
+#: on the 2-core machine (benchmarks/notes.md, forty-sixth session).
 PARALLEL_MIN_NS = 200_000
 
 
@@ -165,7 +164,7 @@ _blur_patches_serial, _blur_patches_parallel = _make_blur_patches(0), _make_blur
 def blur_patches(img: np.ndarray, origin: np.ndarray, tile: np.ndarray, side: int, sigma: float,
                  out: np.ndarray) -> None:
     """The blur of each patch (kernel ``_make_blur_patches``), serial where small
-    (:data:`PARALLEL_MIN_NS`; about 0.3 ns per tap and pixel of both passes)."""
+    (:data:`PARALLEL_MIN_NS`; the work counted in taps times pixels of both passes)."""
     R = gaussian_taps(sigma).shape[0] // 2
     work = 0.3 * origin.shape[0] * (2 * R + 1) * ((side + 2 * R) * side + side * side)
     (_blur_patches_parallel if work >= PARALLEL_MIN_NS else _blur_patches_serial)(img, origin, tile, side, sigma, out)
@@ -489,7 +488,7 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
                     shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
                     normal: np.ndarray, sens: np.ndarray) -> None:
     """Each point moved to its point of symmetry (kernel ``_make_symmetry_refine``), serial
-    where small (:data:`PARALLEL_MIN_NS`; about 50 ns per pair and step at most)."""
+    where small (:data:`PARALLEL_MIN_NS`; the work counted in pairs times steps)."""
     work = 50.0 * float(np.sum(m)) * iters
     (_symmetry_refine_parallel if work >= PARALLEL_MIN_NS else _symmetry_refine_serial)(
         img, taps, p0, a, b, m, shade, iters, tol, out, cov, wres, normal, sens)
@@ -586,7 +585,7 @@ _saddle_fit_serial, _saddle_fit_parallel = _make_saddle_fit(0), _make_saddle_fit
 def saddle_fit(s: np.ndarray, pts: np.ndarray, r: int, iters: int, pinv: np.ndarray, cvar: float, q: np.ndarray,
                sigma: np.ndarray, resid: np.ndarray) -> None:
     """The saddle fit of each point (kernel ``_make_saddle_fit``), serial where small
-    (:data:`PARALLEL_MIN_NS`; about 3 ns per tap of a window row, per step)."""
+    (:data:`PARALLEL_MIN_NS`; the work counted in taps of the window's rows times steps)."""
     n = 2 * r + 1
     work = 3.0 * pts.shape[0] * (iters + 1) * ((n + 3) * n + 2 * n * n)
     (_saddle_fit_parallel if work >= PARALLEL_MIN_NS else _saddle_fit_serial)(s, pts, r, iters, pinv, cvar, q,

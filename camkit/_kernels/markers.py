@@ -41,7 +41,7 @@ def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) 
     """``out[y, x] = g[y, x] < mean of g over the (2r+1)^2 window (clipped at the borders) - c``,
     from the integral image ``ii`` (:func:`integral`). Where the window lies wholly inside a
     row, its area is the row's one number and the loop runs on slices indexed from zero (so
-    that it vectorises: three times as fast, the same comparisons)."""
+    that it vectorises; the same comparisons)."""
     H, W = g.shape
     for y in prange(H):
         y0 = max(y - r, 0)
@@ -442,7 +442,7 @@ _fit_homographies_serial, _fit_homographies_parallel = _make_fit_homographies(0)
 
 def fit_homographies(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:
     """Each point set's homography (kernel ``_make_fit_homographies``), serial where small
-    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; about 0.8 us a set and 60 ns a point)."""
+    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; the work counted in sets and their points)."""
     work = src.shape[0] * (800.0 + 60.0 * src.shape[1])
     (_fit_homographies_parallel if work >= PARALLEL_MIN_NS else _fit_homographies_serial)(src, dst, out)
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -704,7 +704,7 @@ _read_cells_serial, _read_cells_parallel = _make_read_cells(0), _make_read_cells
 def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndarray, n_cells: int, m: int,
                cell: np.ndarray, white: np.ndarray) -> None:
     """Each quad's cells and margin (kernel ``_make_read_cells``), serial where small
-    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; about 9 ns a sample)."""
+    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; the work counted in samples)."""
     work = 9.0 * Hs.shape[0] * pts.shape[0]
     (_read_cells_parallel if work >= PARALLEL_MIN_NS else _read_cells_serial)(img, a, b, Hs, pts, n_cells, m, cell,
                                                                              white)
