@@ -132,6 +132,20 @@ _RIM_TO_REFINE = 0.6
 _READ_CHUNK = 4096
 
 
+def _read_cells(g: np.ndarray, Hs: np.ndarray, pts: np.ndarray, n_cells: int,
+                m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each quad's cells and margin (kernel :func:`camkit._kernels.markers.read_cells`): the
+    points ``pts`` (P, 2) through each homography ``Hs`` (K, 3, 3), bilinear on ``g`` (a
+    :class:`RawGrey` through its stretch); (K, ``n_cells``) the means of each cell's ``m``
+    points (the first ``n_cells * m``), (K,) the median of the rest (the margin's)."""
+    cell, white = np.empty((len(Hs), n_cells)), np.empty(len(Hs))
+    raw = isinstance(g, RawGrey)
+    markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64), g.a if raw else 1.0,
+                               g.b if raw else 0.0, np.ascontiguousarray(Hs), np.ascontiguousarray(pts), n_cells, m,
+                               cell, white)
+    return cell, white
+
+
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
                       src: np.ndarray | None = None, rim_contrast: float = 0.15,
                       bend: float = 0.0,
@@ -183,12 +197,7 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
         cell = vals[:, :n * n * m].reshape(K, n, n, m).mean(axis=3)
         white = np.median(vals[:, n * n * m:], axis=1)
     else:
-        # Projection, sampling, the cells' means and the margin's median in one kernel.
-        cell, white = np.empty((K, n * n)), np.empty(K)
-        raw = isinstance(g, RawGrey)
-        markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64),
-                                   g.a if raw else 1.0, g.b if raw else 0.0, np.ascontiguousarray(Hs),
-                                   np.ascontiguousarray(pts), n * n, m, cell, white)
+        cell, white = _read_cells(g, Hs, pts, n * n, m)
         cell = cell.reshape(K, n, n)
     inner = np.zeros((n, n), dtype=bool)
     inner[border:-border, border:-border] = True
@@ -251,8 +260,8 @@ def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
     """A work array of ``shape`` (contents undefined) from this thread's buffer ``name``, kept
     between calls while this thread's buffers fit in :data:`_SCRATCH_MAX_BYTES`: a fresh
     allocation's pages are faulted in as they are first written, which made
-    :func:`find_quads`'s integral image and masks take two to three times as long inside a
-    detection as when timed alone (0.95 against 0.31 ms at 640 x 480). Grows where a larger
+    :func:`find_quads`'s integral image and masks take several times as long inside a
+    detection as when timed alone (benchmarks/notes.md, forty-sixth session). Grows where a larger
     one is asked for; the arrays of one call of :func:`find_quads` are all its own (one name
     each)."""
     n = int(np.prod(shape)) * np.dtype(dtype).itemsize
@@ -603,12 +612,7 @@ def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float
     pts = np.concatenate([np.stack([cx[rim] + 0.5, cy[rim] + 0.5], axis=-1),
                           [[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]]])
     r = int(rim.sum())
-    # One sample a rim cell, and the margin's median (kernel read_cells, a cell of one point).
-    vals, white = np.empty((len(quads), r)), np.empty(len(quads))
-    raw = isinstance(g, RawGrey)
-    markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64), g.a if raw else 1.0,
-                               g.b if raw else 0.0, np.ascontiguousarray(Hs), np.ascontiguousarray(pts), r, 1, vals,
-                               white)
+    vals, white = _read_cells(g, Hs, pts, r, 1)  # one sample a rim cell, and the margin's median
     black = np.median(vals, axis=1)
     t = 0.5 * (white + black)
     with np.errstate(invalid="ignore"):
