@@ -36,14 +36,15 @@ def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
             ii[y + 1, x + 1] = ii[y, x + 1] + acc
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) -> None:  # pragma: no cover
     """``out[y, x] = g[y, x] < mean of g over the (2r+1)^2 window (clipped at the borders) - c``,
     from the integral image ``ii`` (:func:`integral`). Where the window lies wholly inside a
     row, its area is the row's one number and the loop runs on slices indexed from zero (so
-    that it vectorises; the same comparisons)."""
+    that it vectorises; the same comparisons). Serial: :func:`camkit.target._markers.find_quads`
+    makes its masks on threads side by side."""
     H, W = g.shape
-    for y in prange(H):
+    for y in range(H):
         y0 = max(y - r, 0)
         y1 = min(y + r + 1, H)
         hy = y1 - y0
@@ -68,13 +69,13 @@ def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) 
             oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
 
 
-@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy")
 def cross_filter(src: np.ndarray, dilate: bool, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Erosion (``dilate`` False: a pixel stays set where it and its four neighbours are set)
     or dilation (set where it or one of its four neighbours is) of ``src`` by the 3 x 3 cross;
-    off the image counts as unset."""
+    off the image counts as unset. Serial, as :func:`dark_mask`."""
     H, W = src.shape
-    for y in prange(H):
+    for y in range(H):
         for x in range(W):
             a = src[y, x]
             b = src[y - 1, x] if y > 0 else False
@@ -94,30 +95,43 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
-    """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1)."""
+    """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1), int32.
+    Counted first (a run starts where a set pixel follows a clear one), then written without
+    branches: each pixel writes the next start and end slots, and a start or an end moves its
+    slot on."""
     H, W = mask.shape
     m = mask.view(np.uint8)
     n = 0
-    for y in range(H):  # a run starts where a set pixel follows a clear one (branch-free)
-        c = np.int64(m[y, 0])
+    for y in range(H):
+        row = m[y]
+        c = np.int64(row[0])
         for x in range(1, W):
-            c += m[y, x] > m[y, x - 1]
+            c += row[x] > row[x - 1]
         n += c
-    ry = np.empty(n, dtype=np.int64)
-    r0 = np.empty(n, dtype=np.int64)
-    r1 = np.empty(n, dtype=np.int64)
+    ry = np.empty(n + 1, dtype=np.int32)  # one slot over: the last row's writes past its runs
+    r0 = np.empty(n + 1, dtype=np.int32)
+    r1 = np.empty(n + 1, dtype=np.int32)
     k = 0
     for y in range(H):
-        x = 0
-        while x < W:
-            if mask[y, x]:
-                s = x
-                while x + 1 < W and mask[y, x + 1]:
-                    x += 1
-                ry[k], r0[k], r1[k] = y, s, x
-                k += 1
-            x += 1
-    return n, ry, r0, r1
+        row = m[y]
+        a0 = r0[k:]  # the row's own slots, indexed from zero
+        a1 = r1[k:]
+        ks = 0
+        ke = 0
+        prev = 0
+        for x in range(W):
+            v = np.int64(row[x])
+            a0[ks] = x
+            a1[ke] = x - 1
+            ks += v > prev
+            ke += v < prev
+            prev = v
+        if prev:
+            a1[ke] = W - 1
+            ke += 1
+        ry[k:k + ke] = y
+        k += ke
+    return n, ry[:n], r0[:n], r1[:n]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -137,10 +151,10 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     region's convex hull (:func:`_hull_quad`), kept where the region fills 0.35 of it at
     least (a curve or a cable does not) and it covers 0.6 of the region; ``stats[:, 5]`` is 1
     for those. The area of a region without a quad (left out, or all on one side of ab) is
-    made negative."""
-    H, W = mask.shape
+    made negative. Only the regions of the right area and box have their runs gathered (most
+    regions of a threshold's mask are specks)."""
     nr, ry, r0, r1 = _runs(mask)
-    parent = np.arange(nr)
+    parent = np.arange(nr).astype(np.int32)
     # Join each run to the runs of the row above that it overlaps (4-connected: a shared column).
     prev_start, prev_end = 0, 0
     i = 0
@@ -165,59 +179,66 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
                     q += 1
         prev_start, prev_end = i, j
         i = j
-    region = np.empty(nr, dtype=np.int64)
     n = 0
-    for k in range(nr):  # a root is its region's first run: numbered in raster order
-        if _find(parent, k) == k:
-            region[k] = n
-            n += 1
-    for k in range(nr):
-        region[k] = region[_find(parent, k)]
+    for k in range(nr):  # a root is its region's first run
+        n += parent[k] == k
+    # Each run's region, numbered in raster order, and the regions' sums, added in the runs'
+    # order.
+    reg = np.empty(nr, dtype=np.int32)
     stats = np.empty((n, 6), dtype=np.int64)
-    sx = np.zeros(n)
-    sy = np.zeros(n)
-    for k in range(n):
-        stats[k, 0] = 0
-        stats[k, 1] = W
-        stats[k, 2] = H
-        stats[k, 3] = -1
-        stats[k, 4] = -1
-        stats[k, 5] = 0
+    nrun = np.zeros(n, dtype=np.int64)
+    sxy = np.zeros((n, 2))
+    g = 0
     for k in range(nr):
-        g = region[k]
-        ln = r1[k] - r0[k] + 1
-        stats[g, 0] += ln
-        stats[g, 1] = min(stats[g, 1], r0[k])
-        stats[g, 2] = min(stats[g, 2], ry[k])
-        stats[g, 3] = max(stats[g, 3], r1[k])
-        stats[g, 4] = max(stats[g, 4], ry[k])
-        sx[g] += 0.5 * (r0[k] + r1[k]) * ln
-        sy[g] += ry[k] * ln
-    # Each region's runs, in raster order (a stable counting sort).
+        a = _find(parent, k)
+        y, x0, x1 = ry[k], r0[k], r1[k]
+        ln = x1 - x0 + 1
+        if a == k:
+            h = g
+            g += 1
+            stats[h, 0], stats[h, 1], stats[h, 2], stats[h, 3], stats[h, 4], stats[h, 5] = ln, x0, y, x1, y, 0
+        else:
+            h = reg[a]
+            stats[h, 0] += ln
+            stats[h, 1] = min(stats[h, 1], x0)
+            stats[h, 3] = max(stats[h, 3], x1)
+            stats[h, 4] = y
+        reg[k] = h
+        nrun[h] += 1
+        sxy[h, 0] += 0.5 * (x0 + x1) * ln
+        sxy[h, 1] += y * ln
+    # The runs of the regions of the right area and box, each region's in raster order (a
+    # stable counting sort).
     start = np.zeros(n + 1, dtype=np.int64)
-    for k in range(nr):
-        start[region[k] + 1] += 1
-    for g in range(n):
-        start[g + 1] += start[g]
-    order = np.empty(nr, dtype=np.int64)
-    fill = start[:n].copy()
-    for k in range(nr):
-        order[fill[region[k]]] = k
-        fill[region[k]] += 1
-    quads = np.zeros((n, 4, 2))
     for g in range(n):
         area = stats[g, 0]
         w = stats[g, 3] - stats[g, 1] + 1
         h = stats[g, 4] - stats[g, 2] + 1
-        if not (min_area <= area <= max_area and min(w, h) >= min_side):
+        start[g + 1] = start[g]
+        if min_area <= area <= max_area and min(w, h) >= min_side:
+            start[g + 1] += nrun[g]
+        else:
             stats[g, 0] = -area
+    order = np.empty(start[n], dtype=np.int64)
+    fill = start[:n].copy()
+    for k in range(nr):
+        g = reg[k]
+        if fill[g] < start[g + 1]:
+            order[fill[g]] = k
+            fill[g] += 1
+    quads = np.zeros((n, 4, 2))
+    for g in range(n):
+        area = stats[g, 0]
+        if area <= 0:
             continue
+        w = stats[g, 3] - stats[g, 1] + 1
+        h = stats[g, 4] - stats[g, 2] + 1
         # A quad's box: not too thin, and a fifth of it filled at least (a curve or a cable is
         # not); else the hull's quad.
         if not (max(w, h) <= 8 * min(w, h) and 5 * area >= w * h):
             _hull_quad(g, area, start, order, ry, r0, r1, stats, quads)
             continue
-        cx, cy = sx[g] / area, sy[g] / area
+        cx, cy = sxy[g, 0] / area, sxy[g, 1] / area
         best = -1.0
         ax, ay = 0.0, 0.0
         for t in range(start[g], start[g + 1]):  # a: farthest from the centroid

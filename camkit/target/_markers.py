@@ -4,6 +4,7 @@ board's layout by their neighbours, and X-junctions refined at their saddle poin
 
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 from collections.abc import Callable
@@ -218,16 +219,45 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     return ids, turns, rimmed
 
 
-def _region_quads(dark: np.ndarray, min_side: int) -> np.ndarray:
-    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise:
-    those whose four corners span most of the region's area (a triangle or a blob's do not;
-    kernel :func:`camkit._kernels.markers.mask_quads`). A serial kernel (``nogil``) wholly:
-    the masks' regions are labelled on threads side by side."""
-    H, W = dark.shape
+def _mask_quads(g: np.ndarray, ii: np.ndarray, r: int, c: float, opening: bool,
+                cuts: tuple[np.ndarray, np.ndarray] | None, min_side: int) -> np.ndarray:
+    """The quads of the dark regions of one mask (see :func:`find_quads`; window half side
+    ``r``, ``c`` below its mean), (K, 4, 2) clockwise: those whose four corners span most of
+    the region's area (a triangle or a blob's do not; kernel
+    :func:`camkit._kernels.markers.mask_quads`). Serial kernels (``nogil``) wholly, on this
+    thread's buffers: the masks are made and labelled on threads side by side."""
+    H, W = g.shape
+    dark = _scratch("mask", (H, W), np.bool_)
+    markers_kernels.dark_mask(g, ii, r, c, dark)
+    if opening:
+        opened = _scratch("opened", (H, W), np.bool_)
+        markers_kernels.cross_filter(dark, False, opened)
+        markers_kernels.cross_filter(opened, True, dark)
+    if cuts is not None:
+        dark[cuts] = False
     return markers_kernels.mask_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
 
 
+def _side_by_side(fn: Callable[[int], np.ndarray], n: int) -> list[np.ndarray]:
+    """``[fn(0), ..., fn(n - 1)]``, the calls shared out between this thread and the pool's as
+    each comes free (``fn`` runs ``nogil`` kernels)."""
+    out: list[np.ndarray] = [np.empty(0)] * n
+    nxt = itertools.count()  # (next() on it is atomic under the GIL)
+
+    def work() -> None:
+        while (i := next(nxt)) < n:
+            out[i] = fn(i)
+
+    helpers = [_pool().submit(work) for _ in range(min(n - 1, _POOL_THREADS))]
+    work()
+    for h in helpers:
+        h.result()
+    return out
+
+
 _POOL: ThreadPoolExecutor | None = None
+#: The pool's threads: they and the caller's share the masks out (:func:`_side_by_side`).
+_POOL_THREADS = max(1, min(3, (os.cpu_count() or 1) - 1))
 
 
 def _forget_pool() -> None:
@@ -244,7 +274,7 @@ def _pool() -> ThreadPoolExecutor:
     """The threads the masks' regions are labelled on, started on first use."""
     global _POOL
     if _POOL is None:
-        _POOL = ThreadPoolExecutor(max_workers=max(1, min(4, os.cpu_count() or 1)), thread_name_prefix="camkit-quads")
+        _POOL = ThreadPoolExecutor(max_workers=_POOL_THREADS, thread_name_prefix="camkit-quads")
     return _POOL
 
 
@@ -284,28 +314,19 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     ``opening``, the dark mask is opened by the 3 x 3 cross first, which parts regions that
     touch at a corner (an AprilGrid's tag and its corner squares) and keeps a border two cells
     wide at two pixels a cell, and each window is thresholded twice: 0.03 and 0.15 below the
-    local mean (the stricter one parts junctions that blur joins). The masks are made one by
-    one (parallel kernels); their regions labelled side by side on threads. ``radii``: the
+    local mean (the stricter one parts junctions that blur joins). Each mask is made and its
+    regions labelled on one thread, the masks side by side (:func:`_side_by_side`). ``radii``: the
     windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
     ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
     H, W = g.shape
     ii = _scratch("integral", (H + 1, W + 1), np.float64)
     markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
-    masks = []
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
-    for i, (r, c) in enumerate([(r, c) for r in radii for c in offsets]):
-        dark = _scratch(f"mask{i}", (H, W), np.bool_)
-        markers_kernels.dark_mask(g, ii, r, c, dark)
-        if opening:
-            opened = _scratch("opened", (H, W), np.bool_)
-            markers_kernels.cross_filter(dark, False, opened)
-            markers_kernels.cross_filter(opened, True, dark)
-        if cuts is not None:
-            dark[cuts] = False
-        masks.append(dark)
-    out = [q for q in _pool().map(_region_quads, masks, [min_side] * len(masks)) if len(q)]
+    masks = [(r, c) for r in radii for c in offsets]
+    out = [q for q in _side_by_side(lambda i: _mask_quads(g, ii, *masks[i], opening, cuts, min_side), len(masks))
+           if len(q)]
     if not out:
         return np.zeros((0, 4, 2))
     # One quad per marker: the windows find most markers more than once.

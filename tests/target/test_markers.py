@@ -379,6 +379,30 @@ def test_quads_found_on_threads_side_by_side_are_those_found_one_by_one():
         np.testing.assert_array_equal(a, b)
 
 
+def test_the_masks_are_shared_out_between_the_callers_thread_and_the_pools():
+    """find_quads makes and labels its masks side by side (_side_by_side): the results come
+    back in the calls' order, and a call that waits for another to start is not left alone
+    (a second thread takes the rest)."""
+    import threading
+
+    from camkit.target import _markers as mk
+
+    started = threading.Event()
+    who: dict[int, int] = {}
+
+    def fn(i: int) -> np.ndarray:
+        who[i] = threading.get_ident()
+        if i == 0:
+            assert started.wait(timeout=30), "no second thread took a call"
+        else:
+            started.set()
+        return np.full(3, i)
+
+    out = mk._side_by_side(fn, 5)
+    assert [int(o[0]) for o in out] == list(range(5))
+    assert len(set(who.values())) >= 2
+
+
 def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_for_bit():
     """Saddle fits, patch blurs, homographies and cell readings run serially where their work is
     small (a parallel loop's wake-up costs more): the serial twin of each kernel gives what the
