@@ -4,6 +4,7 @@ board's layout by their neighbours, and X-junctions refined at their saddle poin
 
 from __future__ import annotations
 
+import functools
 import itertools
 import os
 import threading
@@ -147,6 +148,35 @@ def _read_cells(g: np.ndarray, Hs: np.ndarray, pts: np.ndarray, n_cells: int,
     return cell, white
 
 
+def _margin_points(n: int) -> np.ndarray:
+    """The white margin around a marker of ``n`` cells: half a cell outside each side's middle."""
+    return np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
+
+
+@functools.lru_cache(maxsize=16)
+def _cell_points(n: int, middles: tuple[float, ...]) -> np.ndarray:
+    """Where :func:`read_markers_rims` samples a marker of ``n`` x ``n`` cells (the marker
+    spans ``[0, n]^2``): each cell's ``middles`` each way, cell by cell in raster order, then
+    the margin's four points (:func:`_margin_points`). Read-only (shared between calls)."""
+    ov, ou = np.meshgrid(middles, middles, indexing="ij")
+    cy, cx = np.mgrid[0:n, 0:n]
+    cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
+    pts = np.concatenate([cells, _margin_points(n)])
+    pts.flags.writeable = False
+    return pts
+
+
+@functools.lru_cache(maxsize=16)
+def _rim_points(n: int, border: int) -> np.ndarray:
+    """Where :func:`_rims` samples a marker of ``n`` cells with a border ``border`` wide: each
+    border cell's middle, in raster order, then the margin's four points. Read-only."""
+    cy, cx = np.mgrid[0:n, 0:n]
+    rim = (cx < border) | (cy < border) | (cx >= n - border) | (cy >= n - border)
+    pts = np.concatenate([np.stack([cx[rim] + 0.5, cy[rim] + 0.5], axis=-1), _margin_points(n)])
+    pts.flags.writeable = False
+    return pts
+
+
 def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
                       src: np.ndarray | None = None, rim_contrast: float = 0.15,
                       bend: float = 0.0,
@@ -178,12 +208,7 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
                           undistort(quads, bend, g.shape))
     ok = np.isfinite(Hs).all(axis=(1, 2))
     Hs[~ok] = np.eye(3)  # read nothing from these: ``ok`` rejects them below
-    ov, ou = np.meshgrid(middles, middles, indexing="ij")  # in each cell's middle (3 x 3 by default)
-    cy, cx = np.mgrid[0:n, 0:n]
-    cells = np.stack([(cx[:, :, None] + ou.ravel()).ravel(), (cy[:, :, None] + ov.ravel()).ravel()], axis=-1)
-    # The white margin around the marker: half a cell outside each side's middle.
-    ring = np.array([[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]])
-    pts = np.concatenate([cells, ring])
+    pts = _cell_points(n, tuple(middles))
     m = len(middles) ** 2
     if bend:
         p = (Hs @ np.c_[pts, np.ones(len(pts))].T).transpose(0, 2, 1)
@@ -238,9 +263,9 @@ def _mask_quads(g: np.ndarray, ii: np.ndarray, r: int, c: float, opening: bool,
     return markers_kernels.mask_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
 
 
-def _side_by_side(fn: Callable[[int], np.ndarray], n: int) -> list[np.ndarray]:
-    """``[fn(0), ..., fn(n - 1)]``, the calls shared out between this thread and the pool's as
-    each comes free (``fn`` runs ``nogil`` kernels)."""
+def _side_by_side(fn: Callable[[int], np.ndarray], n: int, helpers: int = 1) -> list[np.ndarray]:
+    """``[fn(0), ..., fn(n - 1)]``, the calls shared out between this thread and up to
+    ``helpers`` of the pool's as each comes free (``fn`` runs ``nogil`` kernels)."""
     out: list[np.ndarray] = [np.empty(0)] * n
     nxt = itertools.count()  # (next() on it is atomic under the GIL)
 
@@ -248,7 +273,7 @@ def _side_by_side(fn: Callable[[int], np.ndarray], n: int) -> list[np.ndarray]:
         while (i := next(nxt)) < n:
             out[i] = fn(i)
 
-    helpers = [_pool().submit(work) for _ in range(min(n - 1, _POOL_THREADS))]
+    helpers = [_pool().submit(work) for _ in range(min(n - 1, helpers, _POOL_THREADS))]
     work()
     for h in helpers:
         h.result()
@@ -258,6 +283,11 @@ def _side_by_side(fn: Callable[[int], np.ndarray], n: int) -> list[np.ndarray]:
 _POOL: ThreadPoolExecutor | None = None
 #: The pool's threads: they and the caller's share the masks out (:func:`_side_by_side`).
 _POOL_THREADS = max(1, min(3, (os.cpu_count() or 1) - 1))
+#: :func:`find_quads` shares its masks out where an image has this many pixels at least; a
+#: smaller one's (a patch where a marker is looked for again) are made on the caller's thread
+#: (the pool's hand-over costs more than it saves on a small image: benchmarks/notes.md,
+#: forty-seventh session).
+_SIDE_BY_SIDE_MIN_PX = 40_000
 
 
 def _forget_pool() -> None:
@@ -325,7 +355,8 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
     masks = [(r, c) for r in radii for c in offsets]
-    out = [q for q in _side_by_side(lambda i: _mask_quads(g, ii, *masks[i], opening, cuts, min_side), len(masks))
+    out = [q for q in _side_by_side(lambda i: _mask_quads(g, ii, *masks[i], opening, cuts, min_side), len(masks),
+                                    _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0)
            if len(q)]
     if not out:
         return np.zeros((0, 4, 2))
@@ -628,11 +659,8 @@ def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float
     Hs = fit_homographies(np.broadcast_to(unit, quads.shape), quads)
     ok = np.isfinite(Hs).all(axis=(1, 2))
     Hs[~ok] = np.eye(3)
-    cy, cx = np.mgrid[0:n, 0:n]
-    rim = (cx < border) | (cy < border) | (cx >= n - border) | (cy >= n - border)
-    pts = np.concatenate([np.stack([cx[rim] + 0.5, cy[rim] + 0.5], axis=-1),
-                          [[n / 2, -0.5], [n + 0.5, n / 2], [n / 2, n + 0.5], [-0.5, n / 2]]])
-    r = int(rim.sum())
+    pts = _rim_points(n, border)
+    r = len(pts) - 4
     vals, white = _read_cells(g, Hs, pts, r, 1)  # one sample a rim cell, and the margin's median
     black = np.median(vals, axis=1)
     t = 0.5 * (white + black)

@@ -610,19 +610,23 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.nd
             if got2 is not None:
                 at = again[near][np.isin(cand[again[near]], got2[0])]
                 pos[at], cov[at], wres[at] = got2[1], got2[2], got2[3]
-        if level is None:
+        with np.errstate(invalid="ignore"):
+            sigma = _symmetry_sigma(cov[:, :3], cov[:, 3:], wres, noise, _map_ends(spacing, reach)[1])
+            ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre).T) <= 0.15 * size)
+                  & (sigma <= _MAX_RECOVERED_SIGMA))
+        if level is None and ok.any():
             # The board's own asymmetry: its found corners (an even sample of them), placed the
-            # same way.
+            # same way (read in the first round, and only where a corner passes the other
+            # tests: where none does, the step ends here).
             idx = np.flatnonzero(found)
             idx = idx[np.unique(np.linspace(0, len(idx) - 1, min(len(idx), _SYM_REFERENCE)).astype(np.int64))]
             ref = _symmetric_points(full, out, nx, spacing, reach, idx, centre_known=True)
             level = noise
             if ref is not None and np.isfinite(ref[3]).any():
                 level = max(noise, float(np.nanmedian(ref[3])))
-        with np.errstate(invalid="ignore"):
-            sigma = _symmetry_sigma(cov[:, :3], cov[:, 3:], wres, noise, _map_ends(spacing, reach)[1])
-            ok = (np.isfinite(pos).all(axis=1) & (np.hypot(*(pos - centre).T) <= 0.15 * size)
-                  & (wres <= 2.0 * level + _SYM_MISFIT) & (sigma <= _MAX_RECOVERED_SIGMA))
+        if level is not None:
+            with np.errstate(invalid="ignore"):
+                ok &= wres <= 2.0 * level + _SYM_MISFIT
         if ok.any():
             k = np.flatnonzero(ok)
             x, mid, rho, ob = _x_test(board, full, pos[k], size[k], _clearance(board, cand[k], du[k], dv[k]),
