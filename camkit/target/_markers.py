@@ -7,13 +7,13 @@ from __future__ import annotations
 import functools
 import itertools
 import os
-import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.spatial import cKDTree
 
+from camkit._alloc import scratch
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
@@ -252,10 +252,10 @@ def _mask_quads(g: np.ndarray, ii: np.ndarray, r: int, c: float, opening: bool,
     :func:`camkit._kernels.markers.mask_quads`). Serial kernels (``nogil``) wholly, on this
     thread's buffers: the masks are made and labelled on threads side by side."""
     H, W = g.shape
-    dark = _scratch("mask", (H, W), np.bool_)
+    dark = scratch("mask", (H, W), np.bool_)
     markers_kernels.dark_mask(g, ii, r, c, dark)
     if opening:
-        opened = _scratch("opened", (H, W), np.bool_)
+        opened = scratch("opened", (H, W), np.bool_)
         markers_kernels.cross_filter(dark, False, opened)
         markers_kernels.cross_filter(opened, True, dark)
     if cuts is not None:
@@ -308,35 +308,6 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL
 
 
-_SCRATCH = threading.local()
-
-#: :func:`_scratch` keeps at most this many bytes per thread (a 12 MP image's marker level,
-#: 1000 x 750, needs 6 MB for its integral image and 0.75 MB a mask); what does not fit is made
-#: afresh each time.
-_SCRATCH_MAX_BYTES = 16 << 20
-
-
-def _scratch(name: str, shape: tuple[int, ...], dtype: type) -> np.ndarray:
-    """A work array of ``shape`` (contents undefined) from this thread's buffer ``name``, kept
-    between calls while this thread's buffers fit in :data:`_SCRATCH_MAX_BYTES`: a fresh
-    allocation's pages are faulted in as they are first written, which made
-    :func:`find_quads`'s integral image and masks take several times as long inside a
-    detection as when timed alone (benchmarks/notes.md, forty-sixth session). Grows where a larger
-    one is asked for; the arrays of one call of :func:`find_quads` are all its own (one name
-    each)."""
-    n = int(np.prod(shape)) * np.dtype(dtype).itemsize
-    bufs = getattr(_SCRATCH, "bufs", None)
-    if bufs is None:
-        bufs = _SCRATCH.bufs = {}
-    buf = bufs.get(name)
-    if buf is None or buf.size < n:
-        kept = sum(b.size for k, b in bufs.items() if k != name)
-        if kept + n > _SCRATCH_MAX_BYTES:
-            return np.empty(shape, dtype=dtype)
-        buf = bufs[name] = np.empty(n, dtype=np.uint8)
-    return buf[:n].view(dtype).reshape(shape)
-
-
 def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple[int, ...] | None = None,
                cuts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
@@ -349,7 +320,7 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
     ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
     H, W = g.shape
-    ii = _scratch("integral", (H + 1, W + 1), np.float64)
+    ii = scratch("integral", (H + 1, W + 1), np.float64)
     markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
     if radii is None:

@@ -8,7 +8,7 @@ from typing import Self
 
 import numpy as np
 
-from camkit._alloc import new_image
+from camkit._alloc import new_image, scratch
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
@@ -149,9 +149,10 @@ class RawGrey:
         self._dense: np.ndarray | None = None
 
     def dense(self) -> np.ndarray:
-        """The float64 grey image (made once)."""
+        """The float64 grey image (made once, in this thread's work buffer ``"dense"``
+        (:func:`camkit._alloc.scratch`): a detection's own, on its thread; one grey at a time)."""
         if self._dense is None:
-            g = new_image(self.shape, np.dtype(np.float64))
+            g = scratch("dense", self.shape, np.float64, touched=True)
             detect_kernels.grey_mean(self.raw[:, :, None], 1.0, -self.b / self.a, self.a, g)
             self._dense = g
         return self._dense

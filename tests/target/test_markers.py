@@ -482,24 +482,24 @@ def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
 
 
 def test_the_buffers_kept_per_thread_stay_under_their_bound():
-    """find_quads' work arrays are kept per thread up to _SCRATCH_MAX_BYTES in all: asked for
-    more (a 12 MP image read at full resolution), they are made afresh and not kept; each name
-    is its own memory."""
+    """find_quads' work arrays (and a detection's dense grey) are kept per thread up to
+    SCRATCH_MAX_BYTES in all: asked for more (a 12 MP image read at full resolution), they are
+    made afresh and not kept; each name is its own memory."""
     import threading
 
-    from camkit.target import _markers as mk
+    from camkit import _alloc as al
 
     def kept() -> int:
-        return sum(b.size for b in getattr(mk._SCRATCH, "bufs", {}).values())
+        return sum(b.size for b in getattr(al._SCRATCH, "bufs", {}).values())
 
     def work(out: list) -> None:
-        a = mk._scratch("integral", (481, 641), np.float64)
-        b = mk._scratch("mask0", (480, 640), np.bool_)
+        a = al.scratch("integral", (481, 641), np.float64)
+        b = al.scratch("mask0", (480, 640), np.bool_)
         a[:] = 1.0
         b[:] = False
         assert a.shape == (481, 641) and b.shape == (480, 640) and (a == 1.0).all()  # no overlap
-        big = [mk._scratch(f"mask{i}", (3000, 4000), np.bool_) for i in range(1, 4)]
-        ii = mk._scratch("integral", (3001, 4001), np.float64)
+        big = [al.scratch(f"mask{i}", (3000, 4000), np.bool_) for i in range(1, 4)]
+        ii = al.scratch("integral", (3001, 4001), np.float64)
         assert all(m.shape == (3000, 4000) for m in big) and ii.shape == (3001, 4001)
         out.append(kept())
 
@@ -507,4 +507,4 @@ def test_the_buffers_kept_per_thread_stay_under_their_bound():
     t = threading.Thread(target=work, args=(sizes,))  # a fresh thread: its own, empty buffers
     t.start()
     t.join()
-    assert 0 < sizes[0] <= mk._SCRATCH_MAX_BYTES
+    assert 0 < sizes[0] <= al.SCRATCH_MAX_BYTES
