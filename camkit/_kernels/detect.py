@@ -220,17 +220,27 @@ def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:
     n = 3 if C >= 3 else 1
     # Four histograms, pixels taken in turn: a run of equal values (a flat area) then adds to
     # four counters, not one count that waits on its own last store.
-    part = np.zeros((4, hist.shape[0]), dtype=np.int64)
+    nb = hist.shape[0]
+    h0, h1, h2, h3 = np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64)
     for y in range(0, H, step):
-        i = 0
-        for x in range(0, W, step):
+        row = img[y, ::step]
+        m = row.shape[0]
+        x = 0
+        if n == 1:
+            while x + 4 <= m:
+                h0[row[x, 0]] += 1
+                h1[row[x + 1, 0]] += 1
+                h2[row[x + 2, 0]] += 1
+                h3[row[x + 3, 0]] += 1
+                x += 4
+        while x < m:
             acc = 0
             for c in range(n):
-                acc += np.int64(img[y, x, c])
-            part[i & 3, acc] += 1
-            i += 1
-    for v in range(hist.shape[0]):
-        hist[v] += part[0, v] + part[1, v] + part[2, v] + part[3, v]
+                acc += np.int64(row[x, c])
+            h0[acc] += 1
+            x += 1
+    for v in range(nb):
+        hist[v] += h0[v] + h1[v] + h2[v] + h3[v]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

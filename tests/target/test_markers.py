@@ -67,6 +67,24 @@ def test_grey_is_the_channel_mean_stretched_by_its_percentiles():
         np.testing.assert_allclose(_to_grey(img), (g - lo) / (hi - lo), atol=1e-12)
 
 
+def test_the_greys_histogram_counts_every_channel_sum_as_bincount_does():
+    """channel_sum_histogram (four histograms in turn, the one-channel rows four pixels at a
+    time) against np.bincount of the channel sums: one channel, RGB and RGBA, every 1st to 3rd
+    row and column, widths that leave 0-3 pixels over."""
+    from camkit._kernels.detect import channel_sum_histogram
+
+    rng = np.random.default_rng(12)
+    for shape in ((7, 9, 1), (20, 31, 1), (5, 4, 1), (13, 10, 3), (9, 7, 4)):
+        img = rng.integers(0, 256, shape, dtype=np.uint8)
+        img[:, : shape[1] // 2] = 200  # a flat area: runs of one value
+        n = 3 if shape[2] >= 3 else 1
+        for step in (1, 2, 3):
+            hist = np.zeros(255 * n + 1, dtype=np.int64)
+            channel_sum_histogram(img, step, hist)
+            sums = img[::step, ::step, :n].astype(np.int64).sum(axis=2).ravel()
+            np.testing.assert_array_equal(hist, np.bincount(sums, minlength=255 * n + 1))
+
+
 def test_a_forked_child_starts_its_own_thread_pool():
     """The marker quads are labelled on a thread pool; a child forked after the parent used it
     has none of its threads, and starts its own pool: on the parent's, a task waits for an
