@@ -216,7 +216,7 @@ def quarter_mean(img: np.ndarray, a: float, b: float, out: np.ndarray) -> None: 
 def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:  # pragma: no cover - numba
     """``hist[v]`` += the number of pixels of ``img`` (H, W, C) uint8, every ``step``-th row
     and column, whose first three channels (the one channel where C < 3) sum to ``v``."""
-    H, W, C = img.shape
+    H, C = img.shape[0], img.shape[2]
     n = 3 if C >= 3 else 1
     # Four histograms, pixels taken in turn: a run of equal values (a flat area) then adds to
     # four counters, not one count that waits on its own last store.

@@ -676,6 +676,36 @@ def _pairwise_sum(a: np.ndarray, i0: int, n: int) -> float:  # pragma: no cover 
     return s
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def box_shades(img: np.ndarray, a: float, b: float, px: np.ndarray, half: np.ndarray, gx: np.ndarray,
+               gy: np.ndarray, mean: np.ndarray, var: np.ndarray, inside: np.ndarray) -> None:  # pragma: no cover
+    """Each box's shade and spread: for each place ``px[k, p]`` (K, P, 2), the image (``img``
+    stretched by ``a * v + b``; bilinear, edges replicated) at the place plus ``half[k]``
+    times each offset (``gx``, ``gy``, G), ``mean[k, p]`` and ``var[k, p]`` (unbiased) of those
+    G samples, as NumPy's ``mean`` and ``var(ddof=1)`` sum them (:func:`_pairwise_sum`); and
+    ``inside[k]`` cleared where a box of every place reaches off the image (a ``half`` either
+    way of the place)."""
+    H, W = img.shape
+    K, P = px.shape[0], px.shape[1]
+    G = gx.shape[0]
+    v = np.empty(G)
+    dev = np.empty(G)
+    for k in range(K):
+        h = half[k]
+        for p in range(P):
+            x0, y0 = px[k, p, 0], px[k, p, 1]
+            if not (x0 - h >= 0 and y0 - h >= 0 and x0 + h <= W - 1 and y0 + h <= H - 1):
+                inside[k] = False
+            for j in range(G):
+                v[j] = bilinear(img, x0 + h * gx[j], y0 + h * gy[j]) * a + b
+            m = _pairwise_sum(v, 0, G) / G
+            for j in range(G):
+                d = v[j] - m
+                dev[j] = d * d
+            mean[k, p] = m
+            var[k, p] = _pairwise_sum(dev, 0, G) / (G - 1)
+
+
 def _make_read_cells(PARALLEL: int):
     """:func:`read_cells`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
 

@@ -556,12 +556,11 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
         level: dict[int, list[np.ndarray]] = {}
         # One entry per decoded quad; those read straight first (a marker read both ways keeps
         # its refined corners).
-        for j in np.argsort(bent, kind="stable"):
-            quad, code, k = quads[j], codes[j], turns[j]
-            if code < 0:
-                continue
-            # The code's corner j is the quad's corner (j - turns) % 4.
-            add_marker(level, int(code), (quad[(np.arange(4) - k) % 4] + 0.5) * f - 0.5)
+        # The code's corner j is the quad's corner (j - turns) % 4.
+        turned = (np.take_along_axis(quads, ((np.arange(4) - turns[:, None]) % 4)[:, :, None], axis=1) + 0.5) * f - 0.5
+        for j in np.argsort(bent, kind="stable").tolist():
+            if codes[j] >= 0:
+                add_marker(level, int(codes[j]), turned[j])
         if len(level) >= len(found):
             found = level  # the finer level's corners where it reads as much
         # A marker's narrowest side per cell, at this level.
@@ -614,10 +613,12 @@ def add_marker(found: dict[int, list[np.ndarray]], code: int, corners: np.ndarra
     """Add a marker read as ``code`` at ``corners`` (4, 2) to ``found`` unless that code is there
     already at the same place (its centre within half its span): one marker read twice (at two
     windows, or one by one and as part of the board)."""
-    span = float(np.ptp(corners, axis=0).max())
     same = found.setdefault(code, [])
-    if not any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
-        same.append(corners)
+    if same:
+        span = float(np.ptp(corners, axis=0).max())
+        if any(np.hypot(*(c.mean(axis=0) - corners.mean(axis=0))) < 0.5 * span for c in same):
+            return
+    same.append(corners)
 
 
 def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float) -> np.ndarray:

@@ -124,6 +124,7 @@ from typing import Self
 import numpy as np
 
 from camkit._kernels import detect as detect_kernels
+from camkit._kernels import markers as markers_kernels
 from camkit._validate import as_positive_float, as_positive_int
 from camkit.errors import ParameterError
 from camkit.target._homography import apply_homographies, fit_homographies
@@ -153,6 +154,7 @@ from camkit.target.checkerboard import (
     _SHADE_MISFIT,
     _SIGMA_RATIO,
     _SYM_SMOOTHING,
+    RawGrey,
     _grid_spacing,
     _lattices,
     _local_maps,
@@ -1307,6 +1309,9 @@ _LIGHT_BOX = 0.5
 #: 2 / 1.5 px; the same views without a shadow: 0.0266 px at each (benchmarks/notes.md,
 #: forty-fifth session).
 _LIGHT_CLEAR = 2.0
+#: Each box's 5 x 5 samples (:data:`_LIGHT_BOX`), in its half-sides (x fastest).
+_BOX_X, _BOX_Y = (np.ascontiguousarray(a.ravel()) for a in np.meshgrid((np.arange(5) - 2.0) / 2.0,
+                                                                       (np.arange(5) - 2.0) / 2.0))
 
 
 def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, win_of: np.ndarray,
@@ -1384,20 +1389,19 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
     by = np.minimum(a2[:, None] + across * (reach / l2)[:, None], 0.5)
     off = np.concatenate([np.stack([bx, by], axis=-1), np.stack([bx, -by], axis=-1)], axis=1)  # (K, P, 2)
     d = off[..., :1] * e1[:, None] + off[..., 1:] * e2[:, None]  # (K, P, 2), px
-    g = (np.arange(5) - 2.0) / 2.0
-    gx, gy = (a.ravel() for a in np.meshgrid(g, g))
     half = _LIGHT_BOX * clear  # the box's half-size, px
-    H, W = full.shape
     shades, spreads = [], []
     inside = np.ones(len(idx), dtype=bool)
+    raw = isinstance(full, RawGrey)
+    img, sa, sb = (full.raw, full.a, full.b) if raw else (np.ascontiguousarray(full, dtype=np.float64), 1.0, 0.0)
     for sign in (1.0, -1.0):
+        # Each place's box of 5 x 5 samples: their mean and spread.
         px = c[:, None] + sign * d
-        lo, hi = px - half[:, None, None], px + half[:, None, None]
-        inside &= ((lo >= 0).all(axis=(1, 2)) & (hi[..., 0] <= W - 1).all(axis=1) & (hi[..., 1] <= H - 1).all(axis=1))
-        v = _sample(full, px[..., :1] + half[:, None, None] * gx, px[..., 1:] + half[:, None, None] * gy, "bilinear")
-        shades.append(v.mean(axis=2))
-        spreads.append(v.var(axis=2, ddof=1))
-    n = len(gx)
+        mean, spread = np.empty(px.shape[:2]), np.empty(px.shape[:2])
+        markers_kernels.box_shades(img, sa, sb, px, half, _BOX_X, _BOX_Y, mean, spread, inside)
+        shades.append(mean)
+        spreads.append(spread)
+    n = len(_BOX_X)
     D = 0.5 * (shades[0] - shades[1])
     M = 0.5 * (shades[0] + shades[1])
     var = (np.fmax(noise ** 2, spreads[0]) + np.fmax(noise ** 2, spreads[1])) / (4.0 * n)

@@ -85,6 +85,34 @@ def test_the_greys_histogram_counts_every_channel_sum_as_bincount_does():
             np.testing.assert_array_equal(hist, np.bincount(sums, minlength=255 * n + 1))
 
 
+def test_box_shades_are_numpys_means_and_spreads_of_the_sampled_boxes_bit_for_bit():
+    """Step 8's boxes (kernel box_shades) against sampling them (checkerboard._sample) and
+    NumPy's mean and var(ddof=1), bit for bit, on a float image and on a uint8 one through its
+    stretch; a box reaching off the image clears its corner's ``inside``."""
+    from camkit._kernels.markers import box_shades
+    from camkit.target.charuco import _BOX_X, _BOX_Y
+    from camkit.target.checkerboard import RawGrey, _sample
+
+    rng = np.random.default_rng(13)
+    raw = rng.integers(0, 256, (60, 80), dtype=np.uint8)
+    for img in (rng.random((60, 80)), RawGrey(raw, 1 / 200, -0.1)):
+        px = rng.uniform(-2, 82, (30, 10, 2))
+        px[..., 1] *= 60 / 80
+        half = rng.uniform(0.5, 6, 30)
+        v = _sample(img, px[..., :1] + half[:, None, None] * _BOX_X, px[..., 1:] + half[:, None, None] * _BOX_Y,
+                    "bilinear")
+        lo, hi = px - half[:, None, None], px + half[:, None, None]
+        want_in = (lo >= 0).all(axis=(1, 2)) & (hi[..., 0] <= 79).all(axis=1) & (hi[..., 1] <= 59).all(axis=1)
+        mean, var, inside = np.empty((30, 10)), np.empty((30, 10)), np.ones(30, dtype=bool)
+        plain = isinstance(img, np.ndarray)
+        box_shades(img if plain else img.raw, 1.0 if plain else img.a, 0.0 if plain else img.b, px, half, _BOX_X,
+                   _BOX_Y, mean, var, inside)
+        np.testing.assert_array_equal(mean, v.mean(axis=2))
+        np.testing.assert_array_equal(var, v.var(axis=2, ddof=1))
+        np.testing.assert_array_equal(inside, want_in)
+        assert 0 < want_in.sum() < 30
+
+
 def test_a_forked_child_starts_its_own_thread_pool():
     """The marker quads are labelled on a thread pool; a child forked after the parent used it
     has none of its threads, and starts its own pool: on the parent's, a task waits for an
