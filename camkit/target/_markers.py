@@ -776,7 +776,8 @@ def confirm_markers(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: n
     homs: dict[int, np.ndarray] = {}
     if ids:
         hs = fit_homographies(obj[ids], np.stack([found[m][0] for m in ids]))
-        homs = {m: h for m, h in zip(ids, hs, strict=True) if np.isfinite(h).all()}
+        fin = np.isfinite(hs).all(axis=(1, 2)).tolist()
+        homs = {m: h for m, h, f in zip(ids, hs, fin, strict=True) if f}
         ids = [m for m in ids if m in homs]
     pitch = (dict(zip(ids, (np.sqrt(np.abs(quad_area(np.stack([found[m][0] for m in ids])))) * step).tolist(),
                       strict=True)) if ids else {})
