@@ -273,9 +273,13 @@ def _side_by_side(fn: Callable[[int], np.ndarray], n: int, helpers: int = 1) -> 
         while (i := next(nxt)) < n:
             out[i] = fn(i)
 
-    helpers = [_pool().submit(work) for _ in range(min(n - 1, helpers, _POOL_THREADS))]
-    work()
-    for h in helpers:
+    running = [_pool().submit(work) for _ in range(min(n - 1, helpers, _POOL_THREADS))]
+    try:
+        work()
+    finally:  # (the helpers read the caller's arrays: none outlives the call)
+        for h in running:
+            h.exception()
+    for h in running:
         h.result()
     return out
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
 from camkit.target._homography import apply_homographies, fit_homographies
 from camkit.target._markers import distort, undistort
@@ -447,6 +448,19 @@ def test_the_masks_are_shared_out_between_the_callers_thread_and_the_pools():
     out = mk._side_by_side(fn, 5)
     assert [int(o[0]) for o in out] == list(range(5))
     assert len(set(who.values())) >= 2
+
+    # A call that fails: its error comes back, after every call has ended.
+    ended: list[int] = []
+
+    def bad(i: int) -> np.ndarray:
+        if i == 2:
+            raise ValueError("call 2")
+        ended.append(i)
+        return np.zeros(1)
+
+    with pytest.raises(ValueError, match="call 2"):
+        mk._side_by_side(bad, 6)
+    assert sorted(ended) == [0, 1, 3, 4, 5]
 
 
 def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_for_bit():
