@@ -393,7 +393,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     img_q = np.stack([found[m][0] for m in confirmed])
     for c in np.unique(count[count >= 2]):  # one batched fit per number of touching markers
         rows = np.flatnonzero(count == c)
-        mk = np.stack([np.flatnonzero(touch[r]) for r in rows])  # (K, c) indices into confirmed
+        mk = np.nonzero(touch[rows])[1].reshape(len(rows), c)  # (K, c) indices into confirmed, row by row
         Hn = fit_homographies(obj[conf[mk]].reshape(len(rows), 4 * c, 2), img_q[mk].reshape(len(rows), 4 * c, 2))
         q = apply_homographies(Hn, cxy[rows, None] * s + offsets)
         good = np.isfinite(q).all(axis=(1, 2))
