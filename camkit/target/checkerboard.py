@@ -1473,13 +1473,20 @@ def _map_ends(spacing: float, reach: float) -> tuple[np.ndarray, int]:
     of :func:`_symmetric` out to ``reach`` squares (``k`` points, about :data:`_SYM_STEP_PX`
     apart on squares of ``spacing`` px), ``-u``, and half a square either way along the
     columns and the rows."""
-    m = max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX)))
+    return _map_ends_of(max(2, min(_SYM_MAX_HALF, round(reach * spacing / _SYM_STEP_PX))), reach)
+
+
+@functools.lru_cache(maxsize=64)
+def _map_ends_of(m: int, reach: float) -> tuple[np.ndarray, int]:
+    """:func:`_map_ends` for ``m`` points a side out to ``reach`` (read-only: shared)."""
     t = np.arange(-m, m + 1) * (reach / m)
     uu, vv = np.meshgrid(t, t)
     u = np.stack([uu.ravel(), vv.ravel()], axis=1)
     u = u[(u[:, 0] > 0) | ((u[:, 0] == 0) & (u[:, 1] > 0))]
     steps = np.array([[0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
-    return np.concatenate([np.zeros((1, 2)), u, -u, steps]), len(u)
+    ends = np.concatenate([np.zeros((1, 2)), u, -u, steps])
+    ends.flags.writeable = False
+    return ends, len(u)
 
 
 def _split_map(mapped: np.ndarray, k: int, scale: float) -> tuple[np.ndarray, ...]:
