@@ -518,7 +518,8 @@ def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_f
 
 
 def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
-    """dark_mask against its definition in NumPy: each pixel against the mean of g over its
+    """dark_mask (and the integral image, bit for bit its row recurrence) against its definition
+    in NumPy: each pixel against the mean of g over its
     (2r+1)^2 window clipped at the image's borders, less c; windows inside a row (the kernel's
     vectorised loop) and clipped ones, radii from 1 to wider than the image."""
     from camkit._kernels import markers as mk
@@ -529,6 +530,11 @@ def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
         ii = np.empty((H + 1, W + 1))
         mk.integral(g, ii)
         np.testing.assert_allclose(ii[1:, 1:], g.cumsum(0).cumsum(1), rtol=1e-12)
+        # Bit for bit the one-row recurrence (the kernel runs four rows side by side).
+        want = np.zeros((H + 1, W + 1))
+        for y in range(H):
+            want[y + 1, 1:] = want[y, 1:] + np.cumsum(g[y])  # (cumsum adds in order, as the kernel)
+        np.testing.assert_array_equal(ii, want)
         ys, xs = np.mgrid[0:H, 0:W]
         for r in (1, 3, 10, 70):
             y0, y1 = np.maximum(ys - r, 0), np.minimum(ys + r + 1, H)
