@@ -519,9 +519,9 @@ def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_f
 
 def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
     """dark_mask (and the integral image, bit for bit its row recurrence) against its definition
-    in NumPy: each pixel against the mean of g over its
-    (2r+1)^2 window clipped at the image's borders, less c; windows inside a row (the kernel's
-    vectorised loop) and clipped ones, radii from 1 to wider than the image."""
+    in NumPy: each pixel against the mean of g over its (2r+1)^2 window clipped at the image's
+    borders, less c; windows inside a row (the kernel's vectorised loop) and clipped ones, radii
+    from 1 to wider than the image."""
     from camkit._kernels import markers as mk
 
     rng = np.random.default_rng(9)
