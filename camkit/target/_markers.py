@@ -305,7 +305,8 @@ os.register_at_fork(after_in_child=_forget_pool)
 
 
 def _pool() -> ThreadPoolExecutor:
-    """The threads the masks' regions are labelled on, started on first use."""
+    """The threads that make and label masks beside the caller's (:func:`_side_by_side`),
+    started on first use."""
     global _POOL
     if _POOL is None:
         _POOL = ThreadPoolExecutor(max_workers=_POOL_THREADS, thread_name_prefix="camkit-quads")
