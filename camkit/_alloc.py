@@ -31,10 +31,9 @@ SCRATCH_MAX_BYTES = 16 << 20
 def scratch(name: str, shape: tuple[int, ...], dtype: type, touched: bool = False) -> np.ndarray:
     """A work array of ``shape`` (contents undefined) from this thread's buffer ``name``, kept
     between calls while this thread's buffers fit in :data:`SCRATCH_MAX_BYTES`: a fresh
-    allocation's pages are faulted in as they are first written, which made the marker
-    detector's integral image and masks take several times as long inside a detection as when
-    timed alone (benchmarks/notes.md, forty-sixth session). Grows where a larger one is asked
-    for. A name is one array at a time on its thread: the caller's use of it ends before the
+    allocation's pages are faulted in as they are first written, inside the kernel that writes
+    them (benchmarks/notes.md, forty-sixth session, has the measure). Grows where a larger one
+    is asked for. A name is one array at a time on its thread: the caller's use of it ends before the
     name is asked for again there. What does not fit is made afresh (``touched``: by
     :func:`new_image`)."""
     n = int(np.prod(shape)) * np.dtype(dtype).itemsize

@@ -162,7 +162,7 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
                  min_side: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - numba
     """The 4-connected regions of ``mask``, numbered in raster order of their first pixel, from
     its runs of set pixels (a run joins those of the row above that it overlaps; union-find):
-    ``stats`` (n, 5): area, x0, y0, x1, y1 (bounding box inclusive), and, for the regions of
+    ``stats`` (n, 6): area, x0, y0, x1, y1 (bounding box inclusive), and a flag (below), and, for the regions of
     ``min_area`` to ``max_area`` pixels whose box is ``min_side`` or more a side, at most 8
     times longer than wide and a fifth filled, ``quads`` (n, 4, 2): the farthest pixel from
     the centroid (a), the farthest from a (b), and the farthest from the line ab on either

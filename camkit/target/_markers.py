@@ -8,7 +8,7 @@ import functools
 import itertools
 import os
 from collections.abc import Callable
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -28,6 +28,7 @@ from camkit.target.checkerboard import (
     _saddle_fit,
     _sample,
     _smoothed_patches,
+    _stretched,
     _x_corners,
 )
 
@@ -141,10 +142,8 @@ def _read_cells(g: np.ndarray, Hs: np.ndarray, pts: np.ndarray, n_cells: int,
     :class:`RawGrey` through its stretch); (K, ``n_cells``) the means of each cell's ``m``
     points (the first ``n_cells * m``), (K,) the median of the rest (the margin's)."""
     cell, white = np.empty((len(Hs), n_cells)), np.empty(len(Hs))
-    raw = isinstance(g, RawGrey)
-    markers_kernels.read_cells(g.raw if raw else np.ascontiguousarray(g, dtype=np.float64), g.a if raw else 1.0,
-                               g.b if raw else 0.0, np.ascontiguousarray(Hs), np.ascontiguousarray(pts), n_cells, m,
-                               cell, white)
+    markers_kernels.read_cells(*_stretched(g), np.ascontiguousarray(Hs), np.ascontiguousarray(pts), n_cells, m, cell,
+                               white)
     return cell, white
 
 
@@ -277,8 +276,7 @@ def _side_by_side(fn: Callable[[int], np.ndarray], n: int, helpers: int = 1) -> 
     try:
         work()
     finally:  # (the helpers read the caller's arrays: none outlives the call)
-        for h in running:
-            h.exception()
+        wait(running)
     for h in running:
         h.result()
     return out

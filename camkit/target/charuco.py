@@ -154,7 +154,6 @@ from camkit.target.checkerboard import (
     _SHADE_MISFIT,
     _SIGMA_RATIO,
     _SYM_SMOOTHING,
-    RawGrey,
     _grid_spacing,
     _lattices,
     _local_maps,
@@ -165,6 +164,7 @@ from camkit.target.checkerboard import (
     _sample,
     _smoothed_patches,
     _split_map,
+    _stretched,
     _symmetry_sigma,
     _to_grey,
 )
@@ -1392,8 +1392,7 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
     half = _LIGHT_BOX * clear  # the box's half-size, px
     shades, spreads = [], []
     inside = np.ones(len(idx), dtype=bool)
-    raw = isinstance(full, RawGrey)
-    img, sa, sb = (full.raw, full.a, full.b) if raw else (np.ascontiguousarray(full, dtype=np.float64), 1.0, 0.0)
+    img, sa, sb = _stretched(full)
     for sign in (1.0, -1.0):
         # Each place's box of 5 x 5 samples: their mean and spread.
         px = c[:, None] + sign * d

@@ -158,6 +158,14 @@ class RawGrey:
         return self._dense
 
 
+def _stretched(grey: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """What a kernel reads for ``grey``: its pixels and the stretch ``a * v + b`` that gives the
+    grey (a :class:`RawGrey`'s uint8 image and its stretch; a float image as float64, 1, 0)."""
+    if isinstance(grey, RawGrey):
+        return grey.raw, grey.a, grey.b
+    return np.ascontiguousarray(grey, dtype=np.float64), 1.0, 0.0
+
+
 def _to_grey(image: np.ndarray, lazy: bool = False, with_step: bool = False) -> np.ndarray:
     """The image as float64 grey (the mean of R, G and B; alpha ignored), stretched so that its
     1st percentile is 0 and its 99th is 1. ``lazy``: a one-channel uint8 image comes back as

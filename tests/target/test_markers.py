@@ -92,7 +92,7 @@ def test_box_shades_are_numpys_means_and_spreads_of_the_sampled_boxes_bit_for_bi
     stretch; a box reaching off the image clears its corner's ``inside``."""
     from camkit._kernels.markers import box_shades
     from camkit.target.charuco import _BOX_X, _BOX_Y
-    from camkit.target.checkerboard import RawGrey, _sample
+    from camkit.target.checkerboard import RawGrey, _sample, _stretched
 
     rng = np.random.default_rng(13)
     raw = rng.integers(0, 256, (60, 80), dtype=np.uint8)
@@ -105,9 +105,7 @@ def test_box_shades_are_numpys_means_and_spreads_of_the_sampled_boxes_bit_for_bi
         lo, hi = px - half[:, None, None], px + half[:, None, None]
         want_in = (lo >= 0).all(axis=(1, 2)) & (hi[..., 0] <= 79).all(axis=1) & (hi[..., 1] <= 59).all(axis=1)
         mean, var, inside = np.empty((30, 10)), np.empty((30, 10)), np.ones(30, dtype=bool)
-        plain = isinstance(img, np.ndarray)
-        box_shades(img if plain else img.raw, 1.0 if plain else img.a, 0.0 if plain else img.b, px, half, _BOX_X,
-                   _BOX_Y, mean, var, inside)
+        box_shades(*_stretched(img), px, half, _BOX_X, _BOX_Y, mean, var, inside)
         np.testing.assert_array_equal(mean, v.mean(axis=2))
         np.testing.assert_array_equal(var, v.var(axis=2, ddof=1))
         np.testing.assert_array_equal(inside, want_in)
