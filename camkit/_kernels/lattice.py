@@ -116,10 +116,77 @@ def local_fit(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int, exclud
             A[i, 3] = da * da
             A[i, 4] = da * db
             A[i, 5] = db * db
-    sol = np.linalg.lstsq(A, np.ascontiguousarray(P[:m]))[0]
     coef[:] = 0.0
-    coef[:nt] = sol
+    if not _normal_solve(A, P, m, nt, coef):
+        # The members lie on a curve of the fit's own kind (a row and a column for the
+        # quadratic terms): no unique fit. The least-squares solution of least norm, as before.
+        coef[:nt] = np.linalg.lstsq(A, np.ascontiguousarray(P[:m]))[0]
     return 2 if quadratic else 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _normal_solve(A: np.ndarray, P: np.ndarray, m: int, nt: int,
+                  coef: np.ndarray) -> bool:  # pragma: no cover - numba
+    """The least-squares solution of ``A[:m] @ coef[:nt] = P[:m]`` (two right-hand sides)
+    through the normal equations and their Cholesky factor, written into ``coef``; False
+    (``coef`` untouched) where a pivot falls below 1e-9 of the largest diagonal term. The
+    designs of :func:`local_fit` hold small integer lattice offsets, so they are either
+    deficient (a zero pivot, up to rounding) or well conditioned, and squaring their
+    condition costs nothing against a QR or SVD solution, which numba's LAPACK wrappers make
+    several times slower for these few unknowns."""
+    N = np.zeros((nt, nt))
+    r = np.zeros((nt, 2))
+    for i in range(m):
+        for p in range(nt):
+            r[p, 0] += A[i, p] * P[i, 0]
+            r[p, 1] += A[i, p] * P[i, 1]
+            for q in range(p + 1):
+                N[p, q] += A[i, p] * A[i, q]
+    top = 0.0
+    for p in range(nt):
+        top = max(top, N[p, p])
+    L = np.zeros((nt, nt))
+    for p in range(nt):
+        for q in range(p + 1):
+            acc = N[p, q]
+            for k in range(q):
+                acc -= L[p, k] * L[q, k]
+            if p == q:
+                if not acc > 1e-9 * top:
+                    return False
+                L[p, p] = math.sqrt(acc)
+            else:
+                L[p, q] = acc / L[q, q]
+    for c in range(2):  # L y = r, then L^T x = y
+        y = np.empty(nt)
+        for p in range(nt):
+            acc = r[p, c]
+            for k in range(p):
+                acc -= L[p, k] * y[k]
+            y[p] = acc / L[p, p]
+        for p in range(nt - 1, -1, -1):
+            acc = y[p]
+            for k in range(p + 1, nt):
+                acc -= L[k, p] * coef[k, c]
+            coef[p, c] = acc / L[p, p]
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _one_line_and_a_point(rel: np.ndarray, m: int) -> bool:  # pragma: no cover - numba
+    """Whether all but at most one of the ``m`` lattice offsets in ``rel`` lie on one line:
+    then no four are in general position and a homography through them is not fixed (its
+    null space has two dimensions or more). Such a line holds two of any three members, so it
+    is one of the lines through two of the first three."""
+    for i, j in ((0, 1), (0, 2), (1, 2)):
+        ux, uy = rel[j, 0] - rel[i, 0], rel[j, 1] - rel[i, 1]
+        off = 0
+        for k in range(m):
+            if ux * (rel[k, 1] - rel[i, 1]) - uy * (rel[k, 0] - rel[i, 0]) != 0.0:
+                off += 1
+        if off <= 1:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -129,7 +196,8 @@ def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
     ``reach`` of (a, b), (a, b) itself excluded, in coordinates relative to it: writes the
     predicted place and the lengths of a step along either lattice axis there into ``out``
     (x, y, step_a, step_b) and returns True, or False where fewer than five members span a
-    step on both axes or the fit is degenerate. Unlike a polynomial, it follows the steps'
+    step on both axes, all but one lie on a line (a homography is then not fixed), or the fit is
+    degenerate. Unlike a polynomial, it follows the steps'
     shrinking or growing towards a vanishing point, which a plane seen through a pinhole
     shows exactly and a fisheye's rim locally."""
     rel = np.empty(((2 * reach + 1) ** 2, 2))
@@ -145,15 +213,25 @@ def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
         sc += math.hypot(P[i, 0] - mx, P[i, 1] - my) / m
     if not sc > 0:
         return False
-    M = np.zeros((2 * m, 9))
+    if _one_line_and_a_point(rel, m):
+        return False
+    # The DLT's null vector: the eigenvector of M^T M of least eigenvalue (M: two rows per
+    # member), the right singular vector of M that an SVD of M gives, to rounding, at a third of
+    # its cost. M^T M is accumulated without forming M.
+    N = np.zeros((9, 9))
+    row = np.empty(9)
     for i in range(m):
         u, v = rel[i, 0], rel[i, 1]
-        x, y = (P[i, 0] - mx) / sc, (P[i, 1] - my) / sc
-        M[2 * i, 0], M[2 * i, 1], M[2 * i, 2] = u, v, 1.0
-        M[2 * i, 6], M[2 * i, 7], M[2 * i, 8] = -x * u, -x * v, -x
-        M[2 * i + 1, 3], M[2 * i + 1, 4], M[2 * i + 1, 5] = u, v, 1.0
-        M[2 * i + 1, 6], M[2 * i + 1, 7], M[2 * i + 1, 8] = -y * u, -y * v, -y
-    h = np.linalg.svd(M)[2][8]
+        for w in range(2):
+            c = ((P[i, 0] - mx) if w == 0 else (P[i, 1] - my)) / sc
+            row[:] = 0.0
+            row[3 * w], row[3 * w + 1], row[3 * w + 2] = u, v, 1.0
+            row[6], row[7], row[8] = -c * u, -c * v, -c
+            for p in range(9):
+                if row[p] != 0.0:
+                    for q in range(9):
+                        N[p, q] += row[p] * row[q]
+    h = np.linalg.eigh(N)[1][:, 0]
     if not abs(h[8]) > 1e-12:
         return False
     x0, y0 = h[2] / h[8], h[5] / h[8]

@@ -1089,6 +1089,57 @@ def test_growth_follows_steps_that_shrink_towards_a_vanishing_point():
     assert not local_homography(G2, pts[:4], 2, 2, 2, out)
 
 
+def test_local_fits_agree_with_lstsq_and_svd():
+    """The growth's local maps (issue 21): the quadratic or affine fit through the normal
+    equations equals NumPy's least squares, and falls back to it (the least-norm solution)
+    where the members lie on a row and a column; the local homography, from the normal
+    matrix's eigenvector, equals the DLT's SVD null vector; members on one line but one fix
+    no homography."""
+    from camkit._kernels.lattice import local_fit, local_homography
+
+    rng = np.random.default_rng(7)
+    H = np.array([[24.0, 4.0, 300.0], [-3.0, 22.0, 200.0], [0.02, -0.03, 1.0]])
+    for trial in range(200):
+        G = np.full((5, 5), -1, dtype=np.int64)
+        keep = rng.random((5, 5)) < rng.uniform(0.3, 0.95)
+        if trial % 4 == 0:  # a row and a column only: no unique quadratic
+            keep[:] = False
+            keep[1, :] = True
+            keep[:, 3] = True
+        keep[2, 2] = False
+        idx = np.argwhere(keep)
+        if len(idx) < 5:
+            continue
+        G[idx[:, 0], idx[:, 1]] = np.arange(len(idx))
+        rel = idx - 2.0
+        v = np.c_[rel, np.ones(len(idx))] @ H.T
+        pts = v[:, :2] / v[:, 2:] + rng.normal(scale=0.2, size=(len(idx), 2))
+        coef = np.empty((6, 2))
+        kind = local_fit(G, pts, 2, 2, 2, True, 3, coef)
+        if kind:
+            A = np.c_[np.ones(len(idx)), rel]
+            if kind == 2:
+                A = np.c_[A, rel[:, 0] ** 2, rel[:, 0] * rel[:, 1], rel[:, 1] ** 2]
+            want = np.linalg.lstsq(A, pts, rcond=None)[0]
+            np.testing.assert_allclose(coef[:A.shape[1]], want, atol=1e-9)
+        out = np.empty(4)
+        ok = local_homography(G, pts, 2, 2, 2, out)
+        mx, my = pts.mean(axis=0)
+        sc = np.hypot(pts[:, 0] - mx, pts[:, 1] - my).mean()
+        x, y = (pts[:, 0] - mx) / sc, (pts[:, 1] - my) / sc
+        u, w = rel[:, 0], rel[:, 1]
+        z, o = np.zeros_like(u), np.ones_like(u)
+        M = np.r_[np.c_[u, w, o, z, z, z, -x * u, -x * w, -x], np.c_[z, z, z, u, w, o, -y * u, -y * w, -y]]
+        on_a_line = any(
+            np.count_nonzero((rel[j] - rel[i])[0] * (rel[:, 1] - rel[i, 1])
+                             - (rel[j] - rel[i])[1] * (rel[:, 0] - rel[i, 0])) <= 1
+            for i in range(len(rel)) for j in range(len(rel)) if i != j)
+        assert ok == (not on_a_line)
+        if ok:
+            h = np.linalg.svd(M)[2][8]
+            np.testing.assert_allclose(out[:2], [mx + sc * h[2] / h[8], my + sc * h[5] / h[8]], atol=1e-7)
+
+
 @pytest.mark.parametrize("beyond, seen", [((0.02, 0.4), "border"), ((0.1, 0.85), "more")])
 def test_a_margin_over_a_dark_background_is_not_more_pattern(beyond, seen):
     """The border test (issue 21): past the board's outer squares and a narrow margin, a dark
