@@ -684,3 +684,32 @@ def border_samples(G: np.ndarray, q: np.ndarray, s: np.ndarray, axis: int, side:
                 inner[j] = v
             else:
                 far_sides[j, t - 3] = v
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lens_map(P: np.ndarray, g: np.ndarray, g0x: float, g0y: float, gs: float,
+             out: np.ndarray) -> None:  # pragma: no cover - numba
+    """The lattice points ``g`` (N, 2) under each parameter vector of ``P`` (K, 12) of the
+    checkerboard's lens model (``target.checkerboard._LensMap``) into ``out`` (K, N, 2): the
+    lattice centred on (g0x, g0y) and scaled by 1 / ``gs``, the homography of ``P[:8]`` (its
+    last entry 1), the division model's inverse with strength ``P[8]`` and the radial term
+    ``P[9]`` about the centre ``P[10:12]``. Non-finite where the homography sends a point to
+    infinity, as IEEE arithmetic gives it."""
+    for k in range(P.shape[0]):
+        cx, cy = P[k, 10], P[k, 11]
+        for i in range(g.shape[0]):
+            a = (g[i, 0] - g0x) / gs
+            b = (g[i, 1] - g0y) / gs
+            hx = a * P[k, 0] + b * P[k, 1] + P[k, 2]
+            hy = a * P[k, 3] + b * P[k, 4] + P[k, 5]
+            hw = a * P[k, 6] + b * P[k, 7] + 1.0
+            ux = hx / hw - cx
+            uy = hy / hw - cy
+            t = 1.0 - 4.0 * P[k, 8] * (ux * ux + uy * uy)
+            if t < 0.0:
+                t = 0.0
+            s = 2.0 / (1.0 + math.sqrt(t))
+            dx, dy = ux * s, uy * s
+            f = 1.0 + P[k, 9] * (dx * dx + dy * dy)
+            out[k, i, 0] = cx + dx * f
+            out[k, i, 1] = cy + dy * f

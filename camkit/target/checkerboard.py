@@ -2246,14 +2246,12 @@ class _LensMap:
         """The map of the lattice points ``g`` (N, 2) under each parameter vector of ``P``
         (K, 9 or 12): (K, N, 2), in the centred, scaled image coordinates. One pass for all
         of them: the forward-difference Jacobian's twelve columns at once."""
-        P = np.concatenate([P, np.zeros((len(P), 12 - P.shape[1]))], axis=1)
-        Hm = np.concatenate([P[:, :8], np.ones((len(P), 1))], axis=1).reshape(-1, 3, 3)
-        h = np.c_[(g - self.g0) / self.gs, np.ones(len(g))][None] @ Hm.transpose(0, 2, 1)  # (K, N, 3)
-        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-            u = h[..., :2] / h[..., 2:] - P[:, None, 10:12]
-            r2 = (u * u).sum(axis=2)
-            d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * P[:, 8:9] * r2, 0.0))))[..., None]
-            return P[:, None, 10:12] + d * (1.0 + P[:, 9:10] * (d * d).sum(axis=2))[..., None]
+        full = np.zeros((len(P), 12))
+        full[:, :P.shape[1]] = P
+        out = np.empty((len(P), len(g), 2))
+        lattice_kernels.lens_map(full, np.ascontiguousarray(g, dtype=np.float64), float(self.g0[0]),
+                                 float(self.g0[1]), self.gs, out)
+        return out
 
     def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
             near: float = np.inf, plain: bool = False) -> np.ndarray | None:

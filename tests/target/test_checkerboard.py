@@ -1140,6 +1140,30 @@ def test_local_fits_agree_with_lstsq_and_svd():
             np.testing.assert_allclose(out[:2], [mx + sc * h[2] / h[8], my + sc * h[5] / h[8]], atol=1e-7)
 
 
+def test_lens_map_kernel_agrees_with_the_model_in_numpy():
+    """The lens model's map (issue 21), a kernel, against the model written in NumPy: a
+    homography of the centred lattice, the division model's inverse, a radial term about a
+    free centre; NaN where the homography sends a point to infinity, as NumPy gives it."""
+    from camkit.target import checkerboard as cb
+
+    g = np.stack(np.meshgrid(np.arange(13.0), np.arange(12.0)), axis=-1).reshape(-1, 2)
+    lm = cb._LensMap((480, 640), True, g)
+    rng = np.random.default_rng(3)
+    P = rng.normal(scale=0.3, size=(40, 12))
+    P[:, 8] = -np.abs(P[:, 8])
+    P[0, 6:8] = [-1.0 / ((g[5, 0] - lm.g0[0]) / lm.gs), 0.0]  # point 5's w: 1 + (-1)
+    gn = (g - lm.g0) / lm.gs
+    h = np.c_[gn, np.ones(len(g))] @ np.c_[P[:, :8], np.ones(len(P))].reshape(-1, 3, 3).transpose(0, 2, 1)
+    with np.errstate(all="ignore"):
+        u = h[..., :2] / h[..., 2:] - P[:, None, 10:12]
+        d = u * (2.0 / (1.0 + np.sqrt(np.maximum(1.0 - 4.0 * P[:, 8:9] * (u * u).sum(axis=2), 0.0))))[..., None]
+        want = P[:, None, 10:12] + d * (1.0 + P[:, 9:10] * (d * d).sum(axis=2))[..., None]
+    got = lm._map_many(P, g)
+    assert not np.isfinite(want[0, 5]).all()
+    np.testing.assert_array_equal(np.isfinite(got), np.isfinite(want))
+    np.testing.assert_allclose(got[np.isfinite(want)], want[np.isfinite(want)], rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("beyond, seen", [((0.02, 0.4), "border"), ((0.1, 0.85), "more")])
 def test_a_margin_over_a_dark_background_is_not_more_pattern(beyond, seen):
     """The border test (issue 21): past the board's outer squares and a narrow margin, a dark
