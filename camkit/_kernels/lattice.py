@@ -713,3 +713,134 @@ def lens_map(P: np.ndarray, g: np.ndarray, g0x: float, g0y: float, gs: float,
             f = 1.0 + P[k, 9] * (dx * dx + dy * dy)
             out[k, i, 0] = cx + dx * f
             out[k, i, 1] = cy + dy * f
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lens_residuals(p: np.ndarray, g: np.ndarray, qn: np.ndarray, g0x: float, g0y: float, gs: float,
+                    P: np.ndarray, m: np.ndarray, r: np.ndarray) -> float:  # pragma: no cover - numba
+    """``r`` = the lens model's map of ``g`` under ``p`` (its first ``len(p)`` of 12
+    parameters, the rest 0; ``P`` (1, 12) and ``m`` (1, N, 2) are work space) less ``qn``,
+    flattened; returns ``r @ r``, or inf where a residual is not finite."""
+    P[0, :] = 0.0
+    P[0, :p.shape[0]] = p
+    lens_map(P, g, g0x, g0y, gs, m)
+    cost = 0.0
+    finite = True
+    for i in range(g.shape[0]):
+        for c in range(2):
+            v = m[0, i, c] - qn[i, c]
+            r[2 * i + c] = v
+            if not math.isfinite(v):
+                finite = False
+            cost += v * v
+    return cost if finite else np.inf
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _solve_lu(A: np.ndarray, b: np.ndarray, x: np.ndarray) -> bool:  # pragma: no cover - numba
+    """``x`` = the solution of ``A x = b`` by Gaussian elimination with partial pivoting (``A``
+    and ``b`` are overwritten); False where a pivot is exactly zero (the matrix singular, as
+    LAPACK's gesv reports it)."""
+    n = A.shape[0]
+    for k in range(n):
+        piv, best = k, abs(A[k, k])
+        for i in range(k + 1, n):
+            if abs(A[i, k]) > best:
+                piv, best = i, abs(A[i, k])
+        if best == 0.0:
+            return False
+        if piv != k:
+            for j in range(n):
+                A[k, j], A[piv, j] = A[piv, j], A[k, j]
+            b[k], b[piv] = b[piv], b[k]
+        for i in range(k + 1, n):
+            f = A[i, k] / A[k, k]
+            if f != 0.0:
+                for j in range(k + 1, n):
+                    A[i, j] -= f * A[k, j]
+                b[i] -= f * b[k]
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= A[i, j] * x[j]
+        x[i] = acc / A[i, i]
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def lens_fit(p0: np.ndarray, g: np.ndarray, qn: np.ndarray, g0x: float, g0y: float, gs: float,
+             max_iter: int, p: np.ndarray) -> bool:  # pragma: no cover - numba
+    """Fit the lens model (:func:`lens_map`'s first ``len(p0)`` parameters) to the image points
+    ``qn`` (N, 2, centred and scaled as the map gives them) of the lattice points ``g``:
+    Levenberg-Marquardt from ``p0`` into ``p``, with Marquardt's scaling (the damping on the
+    diagonal of J^T J, from 1e-3, times ten on a step that does not lower the cost, a tenth
+    after one that does), a forward-difference Jacobian (steps 1e-7 of each parameter, at
+    least 1e-7), at most ``max_iter`` iterations; it stops where a step lowers the cost by
+    1e-12 of it or less, or moves no parameter by more than 1e-12 of the largest, or where the
+    damping passes 1e12. False (``p`` = ``p0``) where the start's residuals are not finite."""
+    n, N = p0.shape[0], g.shape[0]
+    P = np.zeros((1, 12))
+    m = np.empty((1, N, 2))
+    r = np.empty(2 * N)
+    r_new = np.empty(2 * N)
+    r_h = np.empty(2 * N)
+    J = np.empty((2 * N, n))
+    A = np.empty((n, n))
+    grad = np.empty(n)
+    M = np.empty((n, n))
+    rhs = np.empty(n)
+    step = np.empty(n)
+    trial = np.empty(n)
+    p[:] = p0
+    cost = _lens_residuals(p, g, qn, g0x, g0y, gs, P, m, r)
+    if not math.isfinite(cost):
+        return False
+    damping = 1e-3
+    for _ in range(max_iter):
+        for j in range(n):
+            h = 1e-7 * max(abs(p[j]), 1.0)
+            trial[:] = p
+            trial[j] = p[j] + h
+            _lens_residuals(trial, g, qn, g0x, g0y, gs, P, m, r_h)
+            for i in range(2 * N):
+                J[i, j] = (r_h[i] - r[i]) / h
+        for a in range(n):
+            acc = 0.0
+            for i in range(2 * N):
+                acc += J[i, a] * r[i]
+            grad[a] = acc
+            for b in range(a + 1):
+                acc = 0.0
+                for i in range(2 * N):
+                    acc += J[i, a] * J[i, b]
+                A[a, b] = acc
+                A[b, a] = acc
+        while True:
+            for a in range(n):
+                for b in range(n):
+                    M[a, b] = A[a, b]
+                M[a, a] += damping * max(A[a, a], 1e-12)
+                rhs[a] = -grad[a]
+            if _solve_lu(M, rhs, step):
+                for a in range(n):
+                    trial[a] = p[a] + step[a]
+                new = _lens_residuals(trial, g, qn, g0x, g0y, gs, P, m, r_new)
+            else:
+                new = np.inf
+            if new < cost:
+                break
+            damping *= 10.0
+            if damping > 1e12:
+                return True
+        big_p, big_s = 0.0, 0.0
+        for a in range(n):
+            p[a] = trial[a]
+            big_p = max(big_p, abs(p[a]))
+            big_s = max(big_s, abs(step[a]))
+        decrease = cost - new
+        cost = new
+        r[:] = r_new
+        damping = max(damping / 10.0, 1e-12)
+        if decrease <= 1e-12 * max(cost, 1e-300) or big_s <= 1e-12 * big_p:
+            break
+    return True

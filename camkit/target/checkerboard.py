@@ -2255,12 +2255,12 @@ class _LensMap:
 
     def fit(self, g: np.ndarray, q: np.ndarray, start: np.ndarray | None = None,
             near: float = np.inf, plain: bool = False) -> np.ndarray | None:
-        """Least squares (:func:`_levenberg_marquardt`) from ``start``, else from the best of
-        a few division-model strengths with a homography each (the division model undistorts
-        in closed form); None where that best start misses a point by more than ``near``
-        pixels (no such lens is near), where it is the undistorted one and ``plain`` is false
-        (a homography: the local quadratic check already follows it), or where the fit
-        fails."""
+        """Least squares (Levenberg-Marquardt, :func:`camkit._kernels.lattice.lens_fit`) from
+        ``start``, else from the best of a few division-model strengths with a homography each
+        (the division model undistorts in closed form); None where that best start misses a
+        point by more than ``near`` pixels (no such lens is near), where it is the undistorted
+        one and ``plain`` is false (a homography: the local quadratic check already follows
+        it), or where the fit fails."""
         qn = (q - self.centre) / self.f
         gn = (g - self.g0) / self.gs
         if start is None:
@@ -2278,52 +2278,13 @@ class _LensMap:
             if best_start is None or not best_miss <= near or (best_start[8] == 0.0 and not plain):
                 return None
             start = best_start
-        return _levenberg_marquardt(lambda p: (self._map(p, g) - qn).ravel(), start, 40,
-                                    lambda P: (self._map_many(P, g) - qn[None]).reshape(len(P), -1))
+        p = np.empty(len(start))
+        ok = lattice_kernels.lens_fit(np.asarray(start, dtype=np.float64), np.ascontiguousarray(g, dtype=np.float64),
+                                      np.ascontiguousarray(qn), float(self.g0[0]), float(self.g0[1]), self.gs, 40, p)
+        return p if ok else None
 
     def predict(self, p: np.ndarray, g: np.ndarray) -> np.ndarray:
         return self._map(p, g) * self.f + self.centre
-
-
-def _levenberg_marquardt(residuals, p0: np.ndarray, max_iter: int, residuals_many=None) -> np.ndarray | None:
-    """Minimise ``|residuals(p)|^2`` from ``p0``: Levenberg-Marquardt with Marquardt's scaling
-    (the damping on the diagonal of J^T J) and a forward-difference Jacobian, for the few
-    parameters of a detector's model (camkit's sparse solver, :mod:`camkit.calib.refine`,
-    serves the calibration above this layer). ``residuals_many``, where given, gives the
-    residuals of the rows of a (K, n) array of parameter vectors at once (the Jacobian's
-    columns in one call). None where the start is not finite."""
-    p = np.array(p0, dtype=np.float64)
-    with np.errstate(all="ignore"):
-        r = residuals(p)
-        if not np.isfinite(r).all():
-            return None
-        cost = float(r @ r)
-        damping = 1e-3
-        for _ in range(max_iter):
-            h = 1e-7 * np.maximum(np.abs(p), 1.0)
-            if residuals_many is None:
-                J = np.stack([(residuals(p + h[i] * np.eye(len(p))[i]) - r) / h[i] for i in range(len(p))], axis=1)
-            else:
-                J = ((residuals_many(p[None, :] + np.diag(h)) - r[None, :]) / h[:, None]).T
-            A, g = J.T @ J, J.T @ r
-            diag = np.maximum(np.diag(A), 1e-12)
-            while True:
-                try:
-                    step = np.linalg.solve(A + damping * np.diag(diag), -g)
-                except np.linalg.LinAlgError:
-                    step = np.full_like(p, np.nan)
-                r_new = residuals(p + step)
-                new = float(r_new @ r_new) if np.isfinite(r_new).all() else np.inf
-                if new < cost:
-                    break
-                damping *= 10.0
-                if damping > 1e12:
-                    return p
-            p, r, decrease, cost = p + step, r_new, cost - new, new
-            damping = max(damping / 10.0, 1e-12)
-            if decrease <= 1e-12 * max(cost, 1e-300) or np.abs(step).max() <= 1e-12 * np.abs(p).max():
-                break
-    return p
 
 
 def _largest_part(g: np.ndarray) -> np.ndarray:
