@@ -131,9 +131,9 @@ def _normal_solve(A: np.ndarray, P: np.ndarray, m: int, nt: int,
     through the normal equations and their Cholesky factor, written into ``coef``; False
     (``coef`` untouched) where a pivot falls below 1e-9 of the largest diagonal term. The
     designs of :func:`local_fit` hold small integer lattice offsets, so they are either
-    deficient (a zero pivot, up to rounding) or well conditioned, and squaring their
-    condition costs nothing against a QR or SVD solution, which numba's LAPACK wrappers make
-    several times slower for these few unknowns."""
+    deficient (a zero pivot, up to rounding) or well conditioned, and the normal equations
+    lose nothing there that a QR or SVD solution would keep (the cost of numba's LAPACK
+    wrappers for so few unknowns: benchmarks/notes.md, forty-eighth session)."""
     N = np.zeros((nt, nt))
     r = np.zeros((nt, 2))
     for i in range(m):
@@ -196,10 +196,10 @@ def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
     ``reach`` of (a, b), (a, b) itself excluded, in coordinates relative to it: writes the
     predicted place and the lengths of a step along either lattice axis there into ``out``
     (x, y, step_a, step_b) and returns True, or False where fewer than five members span a
-    step on both axes, all but one lie on a line (a homography is then not fixed), or the fit is
-    degenerate. Unlike a polynomial, it follows the steps'
-    shrinking or growing towards a vanishing point, which a plane seen through a pinhole
-    shows exactly and a fisheye's rim locally."""
+    step on both axes, all but one lie on a line (a homography is then not fixed), or the
+    fit is degenerate. Unlike a polynomial, it follows the steps' shrinking or growing
+    towards a vanishing point, which a plane seen through a pinhole shows exactly and a
+    fisheye's rim locally."""
     rel = np.empty(((2 * reach + 1) ** 2, 2))
     P = np.empty(((2 * reach + 1) ** 2, 2))
     m, span_a, span_b = _members(G, pts, a, b, reach, True, rel, P)
@@ -216,8 +216,8 @@ def local_homography(G: np.ndarray, pts: np.ndarray, a: int, b: int, reach: int,
     if _one_line_and_a_point(rel, m):
         return False
     # The DLT's null vector: the eigenvector of M^T M of least eigenvalue (M: two rows per
-    # member), the right singular vector of M that an SVD of M gives, to rounding, at a third of
-    # its cost. M^T M is accumulated without forming M.
+    # member), the right singular vector of M that an SVD of M gives, to rounding (the SVD's
+    # cost: benchmarks/notes.md, forty-eighth session). M^T M is accumulated without forming M.
     N = np.zeros((9, 9))
     row = np.empty(9)
     for i in range(m):

@@ -2244,8 +2244,9 @@ class _LensMap:
 
     def _map_many(self, P: np.ndarray, g: np.ndarray) -> np.ndarray:
         """The map of the lattice points ``g`` (N, 2) under each parameter vector of ``P``
-        (K, 9 or 12): (K, N, 2), in the centred, scaled image coordinates. One pass for all
-        of them: the forward-difference Jacobian's twelve columns at once."""
+        (K, 9 or 12): (K, N, 2), in the centred, scaled image coordinates (kernel
+        :func:`camkit._kernels.lattice.lens_map`, which :func:`~camkit._kernels.lattice.lens_fit`
+        calls for its residuals too)."""
         full = np.zeros((len(P), 12))
         full[:, :P.shape[1]] = P
         out = np.empty((len(P), len(g), 2))
