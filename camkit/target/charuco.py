@@ -117,6 +117,7 @@ shows that is joined to a confirmed marker.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 from typing import Self
@@ -289,6 +290,20 @@ class Charuco(Target):
 # -- detection ---------------------------------------------------------------------------------
 
 
+@functools.lru_cache(maxsize=32)
+def _layout(board: Charuco) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The board's marker squares (M, 2), its markers' corners on the board ((M, 4, 2), x and
+    y in metres) and which of its squares hold a marker ((squares_y, squares_x) booleans),
+    read-only: a detection reads them many times, and a board (frozen) keeps its layout."""
+    ms = board.marker_squares()
+    obj = np.ascontiguousarray(board.marker_corners()[:, :, :2])
+    white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
+    white[ms[:, 1], ms[:, 0]] = True
+    for a in (ms, obj, white):
+        a.flags.writeable = False
+    return ms, obj, white
+
+
 def _other_layout(board: Charuco, found: dict[int, list[np.ndarray]], factor: int) -> str:
     """Where markers were read but none is where ``board``'s layout puts it: the layout they
     fit, among the two mistakes a user makes with a board (the squares counted the other way
@@ -312,7 +327,7 @@ def _other_layout(board: Charuco, found: dict[int, list[np.ndarray]], factor: in
 
 def _n_confirmed(layout: Charuco, found: dict[int, list[np.ndarray]], factor: int) -> int:
     """How many of the markers read (``found``) confirm each other where ``layout`` puts them."""
-    return len(confirm_markers(found, layout.marker_corners()[:, :, :2], layout.marker_squares(),
+    return len(confirm_markers(found, _layout(layout)[1], _layout(layout)[0],
                                layout.square / layout.marker, factor)[0])
 
 
@@ -323,8 +338,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     noise = image_noise(full)
     found, factor, level = find_markers(full, board.aruco, noise=noise)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
-    ms = board.marker_squares()
-    obj = board.marker_corners()[:, :, :2]
+    ms, obj, _ = _layout(board)
     confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if confirmed and board.squares_y % 2 == 0:
         # The legacy setting moves every marker by one square along its row, but for the rows'
@@ -592,8 +606,9 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.nd
         spacing = _grid_spacing(out, nx)
         if not np.isfinite(spacing):
             return
-        got = _symmetric_points(full, out, nx, spacing, reach, np.flatnonzero(~found), centre_known=False,
-                                board=board, quads=quads)
+        missing = np.flatnonzero(~found)
+        maps = _neighbour_maps(out, nx, spacing, reach, missing, False, board, quads)
+        got = _symmetric_points(full, out, nx, spacing, reach, missing, centre_known=False, maps=maps)
         if got is None:
             return
         cand, pos, cov, wres, centre, du, dv, size = got
@@ -607,8 +622,9 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.nd
                 k = win == r
                 q[k] = refine_patches(full, centre[again[k]], int(r), _FULL_SMOOTHING * factor)[0]
             near = np.isfinite(q).all(axis=1) & (np.hypot(*(q - centre[again]).T) <= 0.15 * size[again])
+            rows = np.searchsorted(missing, cand[again[near]])  # (their maps: as in the first search)
             got2 = _symmetric_points(full, out, nx, spacing, reach, cand[again[near]], centre_known=False,
-                                     board=board, quads=quads, start=q[near])
+                                     start=q[near], maps=tuple(m[rows] for m in maps))
             if got2 is not None:
                 at = again[near][np.isin(cand[again[near]], got2[0])]
                 pos[at], cov[at], wres[at] = got2[1], got2[2], got2[3]
@@ -648,10 +664,26 @@ def _recover_symmetric(board: Charuco, full: np.ndarray, factor: int, out: np.nd
         sig[cand[k]] = sigma[k]
 
 
+def _neighbour_maps(out: np.ndarray, nx: int, spacing: float, reach: float, idx: np.ndarray, centre_known: bool,
+                    board: Charuco | None = None,
+                    quads: dict[int, np.ndarray] | None = None) -> tuple[np.ndarray, ...]:
+    """The local maps of the corners ``idx`` of the lattice ``out`` (a row of ``nx``) from their
+    neighbours (:func:`~camkit.target.checkerboard._local_maps`), with the ``board`` and its
+    confirmed markers' ``quads`` from their neighbours and markers' corners where those are
+    too few (:func:`_marker_maps`): ``(a, b, usable, centre, du, dv)``, one row per corner."""
+    a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=centre_known, only=idx)
+    if board is not None and quads and not usable.all():
+        rest = np.flatnonzero(~usable)
+        got = _marker_maps(board, out, idx[rest], quads, spacing, reach)
+        a[rest], b[rest], usable[rest], centre[rest], du[rest], dv[rest] = got
+    return a, b, usable, centre, du, dv
+
+
 def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float, reach: float, idx: np.ndarray,
                       centre_known: bool, board: Charuco | None = None,
                       quads: dict[int, np.ndarray] | None = None,
-                      start: np.ndarray | None = None) -> tuple[np.ndarray, ...] | None:
+                      start: np.ndarray | None = None,
+                      maps: tuple[np.ndarray, ...] | None = None) -> tuple[np.ndarray, ...] | None:
     """The corners ``idx`` of the lattice ``out`` (a row of ``nx``), each at its point of
     symmetry out to ``reach`` squares on its neighbours' local map (with the corner itself
     where ``centre_known``), started from the map's centre (or from ``start``, (len(idx), 2),
@@ -661,13 +693,11 @@ def _symmetric_points(full: np.ndarray, out: np.ndarray, nx: int, spacing: float
     for the corners with a map whose samples lie inside the image and squares of 6 px or
     more; None where none has. With the ``board`` and its confirmed markers' ``quads``, a
     corner with too few neighbours for a map has one from its neighbours and its markers'
-    corners (:func:`_marker_maps`)."""
+    corners (:func:`_neighbour_maps`). ``maps``: those maps, where already made."""
     H, W = full.shape
-    a, b, usable, centre, du, dv = _local_maps(out, nx, spacing, reach, centre_known=centre_known, only=idx)
-    if board is not None and quads and not usable.all():
-        rest = np.flatnonzero(~usable)
-        got = _marker_maps(board, out, idx[rest], quads, spacing, reach)
-        a[rest], b[rest], usable[rest], centre[rest], du[rest], dv[rest] = got
+    if maps is None:
+        maps = _neighbour_maps(out, nx, spacing, reach, idx, centre_known, board, quads)
+    a, b, usable, centre, du, dv = maps
     size = np.fmin(np.hypot(*du.T), np.hypot(*dv.T))
     with np.errstate(invalid="ignore"):
         extent = np.maximum(np.abs(a).max(axis=(1, 2)), np.abs(b).max(axis=(1, 2))) + 0.15 * size + 4
@@ -721,10 +751,10 @@ def _marker_maps(board: Charuco, out: np.ndarray, idx: np.ndarray, quads: dict[i
     dst = [pix]
     # The markers in the corner's four squares (X, Y), X in {cx, cx + 1}, Y in {cy, cy + 1}
     # (the corner is at (cx + 1, cy + 1) squares): their corners, from the corner.
-    ms = board.marker_squares()
+    ms, obj, _ = _layout(board)
     at = np.full((board.squares_y, board.squares_x), -1)
     at[ms[:, 1], ms[:, 0]] = np.arange(len(ms))
-    obj = board.marker_corners()[:, :, :2] / board.square  # (M, 4, 2) squares
+    obj = obj / board.square  # (M, 4, 2) squares
     have = np.zeros(len(ms), dtype=bool)
     img = np.full((len(ms), 4, 2), np.nan)
     mids = np.fromiter(quads, dtype=np.int64, count=len(quads))
@@ -921,10 +951,7 @@ def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     marker (white)."""
     nx = board.squares_x - 1
     cx, cy = cand % nx + 1, cand // nx + 1
-    ms = board.marker_squares()
-    white = np.zeros((board.squares_y, board.squares_x), dtype=bool)
-    white[ms[:, 1], ms[:, 0]] = True
-    return np.where(white[cy, cx], -1.0, 1.0)
+    return np.where(_layout(board)[2][cy, cx], -1.0, 1.0)
 
 
 def _chirality(board: Charuco, cand: np.ndarray) -> np.ndarray:
