@@ -12,7 +12,9 @@ alone. The inverse of the undamped complement is the global block's covariance (
 A problem supplies its residuals and Jacobians at a state (:class:`Linearization`) and moves a
 state by a step (``retract``: rotations are updated multiplicatively, so the state is not a flat
 vector); the solver owns damping, robust weights, convergence and the report. Calibration,
-PnP and homography refinement are problems for it; a camera rig is another.
+PnP and homography refinement are problems for it; a camera rig is another. (The checkerboard
+detector, a layer below, fits its lattice's lens model of twelve parameters with a small dense
+kernel of its own, :func:`camkit._kernels.lattice.lens_fit`.)
 """
 
 from __future__ import annotations
