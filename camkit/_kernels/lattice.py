@@ -316,19 +316,47 @@ def _seed_cross(pts: np.ndarray, seed: int, a1: int, a2: int, b1: int, b2: int, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _diamond_homography(pts: np.ndarray, a1: int, a2: int, b1: int, b2: int,
+                        h: np.ndarray) -> bool:  # pragma: no cover - numba
+    """``h`` (8: the homography's first eight entries, the ninth 1) that maps lattice positions
+    (1, 0), (-1, 0), (0, 1), (0, -1) about a seed to the corners ``a1``, ``a2``, ``b1``,
+    ``b2``; False where those four leave it undetermined (three on a line)."""
+    A = np.zeros((8, 8))
+    r = np.empty(8)
+    for i in range(4):
+        k = a1 if i == 0 else a2 if i == 1 else b1 if i == 2 else b2
+        u = 1.0 if i == 0 else -1.0 if i == 1 else 0.0
+        v = 1.0 if i == 2 else -1.0 if i == 3 else 0.0
+        x, y = pts[k, 0], pts[k, 1]
+        A[2 * i, 0], A[2 * i, 1], A[2 * i, 2], A[2 * i, 6], A[2 * i, 7] = u, v, 1.0, -u * x, -v * x
+        A[2 * i + 1, 3], A[2 * i + 1, 4], A[2 * i + 1, 5], A[2 * i + 1, 6], A[2 * i + 1, 7] = u, v, 1.0, -u * y, -v * y
+        r[2 * i], r[2 * i + 1] = x, y
+    return _solve_lu(A, r, h)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _seed_diagonals(pts: np.ndarray, used: np.ndarray, taken: np.ndarray, seed: int, R: int,
                     G: np.ndarray) -> int:  # pragma: no cover - numba
     """Put the seed's diagonal neighbours into ``G`` where its edge neighbours place them (within
-    a third of a step) and return how many were there."""
+    a third of a step) and return how many were there: the parallelogram of the seed and two
+    of them (exact for an affine view), else the homography of the four
+    (:func:`_diamond_homography`, exact for a plane seen in perspective). On a board seen
+    steeply, its steps shrinking by a third from one row to the next, the parallelogram missed
+    by more than a third of the shorter step; under a lens the homography can miss where the
+    parallelogram does not (benchmarks/notes.md, forty-ninth session)."""
     found = 0
+    h = np.empty(8)
+    proj = _diamond_homography(pts, G[R + 1, R], G[R - 1, R], G[R, R + 1], G[R, R - 1], h)
     for da in (1, -1):
         for db in (1, -1):
             ka, kb = G[R + da, R], G[R, R + db]
-            wx = pts[ka, 0] + pts[kb, 0] - pts[seed, 0]
-            wy = pts[ka, 1] + pts[kb, 1] - pts[seed, 1]
             step = min(math.hypot(pts[ka, 0] - pts[seed, 0], pts[ka, 1] - pts[seed, 1]),
                        math.hypot(pts[kb, 0] - pts[seed, 0], pts[kb, 1] - pts[seed, 1]))
-            k, dist = _nearest(pts, wx, wy)
+            k, dist = _nearest(pts, pts[ka, 0] + pts[kb, 0] - pts[seed, 0], pts[ka, 1] + pts[kb, 1] - pts[seed, 1])
+            if proj and not dist <= step / 3.0:
+                den = h[6] * da + h[7] * db + 1.0
+                if den > 0.0:
+                    k, dist = _nearest(pts, (h[0] * da + h[1] * db + h[2]) / den, (h[3] * da + h[4] * db + h[5]) / den)
             if dist <= step / 3.0 and not taken[k] and not used[k]:
                 G[R + da, R + db] = k
                 taken[k] = True
@@ -383,7 +411,8 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     (0.3 to 3.5 of its ``spacing`` away), pairs nearly opposite through the seed are lines
     through it, and the shortest two lines that pass :func:`_seed_cross` (``offset``; each link runs along
     an edge between a black and a white square) and put three of the four diagonal neighbours
-    where a corner is (within a third of a step) are its row and column. No direction measured
+    where a corner is (within a third of a step of where the parallelogram of the seed and
+    two of them, or the homography of the four, puts them: :func:`_seed_diagonals`) are its row and column. No direction measured
     at the corner itself is needed: under a steep tilt or at a fisheye's rim the profile
     circle's edge directions are 20 degrees off or more. Then position after
     position next to the lattice is predicted from the members within two steps (quadratic or
