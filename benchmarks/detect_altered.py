@@ -5,8 +5,13 @@ Every photo of ``../shared/data/real_boards`` whose board OpenCV found (``refere
 turned a quarter, shrunk to a half or a third (box filter), enlarged 2x or 3x (bicubic),
 compressed as JPEG at quality 25, darkened to a fifth with noise, flattened to a quarter of
 its contrast with noise, blurred (Gaussian, 2 px), lit by a ramp from 0.15 to 1 across its
-width, or put half in a shadow (the right half dimmed to a fifth past a soft edge). The
-reference corners follow the same map. On each altered photo:
+width, or put half in a shadow (the right half dimmed to a fifth past a soft edge); and
+(added in the forty-ninth session, as photos no step was tuned on) turned 23 and 137 degrees
+(bilinear, on a canvas that holds the whole photo), smeared by a motion of 7 px at 30
+degrees, put through a gamma of 2.2 or 0.45, vignetted to a fifth at the corners with noise,
+mosaicked (RGGB) and demosaicked bilinearly, sprinkled with 1 % salt-and-pepper pixels,
+resized by 1.5 or 0.7, or compressed as JPEG at quality 10. The reference corners follow the
+same map. On each altered photo:
 
 - OpenCV: whether ``findChessboardCornersSB`` (exhaustive, accuracy) or, up to 4 MP, the classic
   ``findChessboardCorners`` still finds the board;
@@ -15,7 +20,7 @@ reference corners follow the same map. On each altered photo:
   board's symmetries allowed, as :mod:`benchmarks.detect_real` scores) is *wrong*.
 
 Run: ``python -m benchmarks.detect_altered [--set NAME] [--alter NAME]`` (all sets and
-alterations by default: about 15 minutes on two cores).
+alterations by default: about 35 minutes on two cores).
 """
 
 from __future__ import annotations
@@ -93,6 +98,77 @@ def _shadow(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return _u8(img.astype(np.float64) * (g[..., None] if img.ndim == 3 else g)), pts
 
 
+def _rotate(img: np.ndarray, pts: np.ndarray, degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """Turned ``degrees`` about the photo's centre (bilinear), on a canvas that holds it all."""
+    from scipy.ndimage import map_coordinates
+
+    h, w = img.shape[:2]
+    a = np.deg2rad(degrees)
+    c, s = np.cos(a), np.sin(a)
+    W, H = int(np.ceil(abs(w * c) + abs(h * s))), int(np.ceil(abs(w * s) + abs(h * c)))
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float64)
+    dx, dy = xx - (W - 1) / 2, yy - (H - 1) / 2
+    sx, sy = c * dx + s * dy + (w - 1) / 2, -s * dx + c * dy + (h - 1) / 2  # the inverse turn
+    f = img.astype(np.float64)
+    chans = [f] if f.ndim == 2 else [f[..., k] for k in range(f.shape[2])]
+    out = np.stack([map_coordinates(ch, [sy, sx], order=1, mode="constant", cval=0.0) for ch in chans], axis=-1)
+    px, py = pts[:, 0] - (w - 1) / 2, pts[:, 1] - (h - 1) / 2
+    return _u8(out[..., 0] if f.ndim == 2 else out), np.stack([c * px - s * py + (W - 1) / 2,
+                                                               s * px + c * py + (H - 1) / 2], axis=-1)
+
+
+def _motion(img: np.ndarray, pts: np.ndarray, length: float, degrees: float) -> tuple[np.ndarray, np.ndarray]:
+    """A straight motion ``length`` px long at ``degrees``, centred (the corners stay put)."""
+    from scipy.ndimage import convolve
+
+    n = 2 * int(np.ceil(length / 2)) + 1
+    k = np.zeros((n, n))
+    a = np.deg2rad(degrees)
+    for t in np.linspace(-length / 2, length / 2, 16 * n):
+        k[round(n // 2 + t * np.sin(a)), round(n // 2 + t * np.cos(a))] += 1.0
+    k = k[..., None] if img.ndim == 3 else k
+    return _u8(convolve(img.astype(np.float64), k / k.sum(), mode="nearest")), pts
+
+
+def _gamma(img: np.ndarray, pts: np.ndarray, g: float) -> tuple[np.ndarray, np.ndarray]:
+    return _u8(255.0 * (img.astype(np.float64) / 255.0) ** g), pts
+
+
+def _vignette(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Light falling to about a fifth at the corners ((1 + 1.2 r^2)^-2, r = 1 there), with
+    noise of 2 levels."""
+    h, w = img.shape[:2]
+    yy, xx = np.mgrid[0:h, 0:w]
+    r2 = ((xx - w / 2) ** 2 + (yy - h / 2) ** 2) / ((w / 2) ** 2 + (h / 2) ** 2)
+    v = (1.0 + 1.2 * r2) ** -2.0
+    return _noisy(img.astype(np.float64) * (v[..., None] if img.ndim == 3 else v), 1.0, 0.0, 2.0), pts
+
+
+def _bayer(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """An RGGB mosaic of the photo, demosaicked by bilinear interpolation (colour fringes at
+    every edge)."""
+    from scipy.ndimage import convolve
+
+    f = (np.repeat(img[..., None], 3, axis=2) if img.ndim == 2 else img[..., :3]).astype(np.float64)
+    h, w = f.shape[:2]
+    has = np.zeros((h, w, 3), dtype=bool)
+    has[0::2, 0::2, 0] = has[0::2, 1::2, 1] = has[1::2, 0::2, 1] = has[1::2, 1::2, 2] = True
+    k = np.array([[1.0, 2.0, 1.0], [2.0, 4.0, 2.0], [1.0, 2.0, 1.0]])
+    out = np.stack([convolve(np.where(has[..., c], f[..., c], 0.0), k, mode="mirror")
+                    / convolve(has[..., c].astype(np.float64), k, mode="mirror") for c in range(3)], axis=-1)
+    return _u8(out), pts
+
+
+def _salt(img: np.ndarray, pts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """1 % of the pixels set to black or white at random."""
+    rng = np.random.default_rng(2)
+    out = img.copy()
+    hit = rng.random(img.shape[:2]) < 0.01
+    v = rng.integers(0, 2, int(hit.sum())).astype(np.uint8) * 255
+    out[hit] = v[:, None] if out.ndim == 3 else v
+    return out, pts
+
+
 ALTERATIONS: dict[str, Alteration] = {
     "as is": lambda i, p: (i, p),
     "turned 90": lambda i, p: _turn(i, p, 1),
@@ -107,6 +183,17 @@ ALTERATIONS: dict[str, Alteration] = {
     "blur 2": lambda i, p: _blur(i, p, 2.0),
     "ramp": _ramp,
     "shadow": _shadow,
+    "turned 23": lambda i, p: _rotate(i, p, 23.0),
+    "turned 137": lambda i, p: _rotate(i, p, 137.0),
+    "motion 7": lambda i, p: _motion(i, p, 7.0, 30.0),
+    "gamma 2.2": lambda i, p: _gamma(i, p, 2.2),
+    "gamma 0.45": lambda i, p: _gamma(i, p, 0.45),
+    "vignette": _vignette,
+    "bayer": _bayer,
+    "salt 1%": _salt,
+    "1.5x": lambda i, p: _resize(i, p, 1.5),
+    "0.7x": lambda i, p: _resize(i, p, 0.7),
+    "jpeg 10": lambda i, p: _jpeg(i, p, 10),
 }
 
 

@@ -412,10 +412,11 @@ def grow(pts: np.ndarray, spacing: np.ndarray, used: np.ndarray, img: np.ndarray
     through it, and the shortest two lines that pass :func:`_seed_cross` (``offset``; each link runs along
     an edge between a black and a white square) and put three of the four diagonal neighbours
     where a corner is (within a third of a step of where the parallelogram of the seed and
-    two of them, or the homography of the four, puts them: :func:`_seed_diagonals`) are its row and column. No direction measured
-    at the corner itself is needed: under a steep tilt or at a fisheye's rim the profile
-    circle's edge directions are 20 degrees off or more. Then position after
-    position next to the lattice is predicted from the members within two steps (quadratic or
+    two of them, or the homography of the four, puts them: :func:`_seed_diagonals`) are its
+    row and column. No direction measured at the corner itself is needed: under a steep tilt
+    or at a fisheye's rim the profile circle's edge directions are 20 degrees off or more.
+    Then position after position next to the lattice is predicted from the members within
+    two steps (quadratic or
     affine map, else the straight continuation of a row or column) and takes the candidate
     nearest the prediction if it lies within a third of the local step, is free and, where
     the position has a map, is linked to each neighbour already in the lattice along an edge
