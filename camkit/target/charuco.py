@@ -76,7 +76,9 @@ Detection reads the markers first, then places the chessboard corners by their s
    prediction, twice as near it as its neighbours' predicted places, on no other found
    corner, with its black squares dark where the lattice puts them, and passes the tests of
    step 4, its sigma judged as there or, where over, its residuals (at most twice the
-   typical) with the sigma the image's noise gives its fit at most a quarter of a pixel.
+   typical) with the sigma the image's noise gives its fit at most a quarter of a pixel;
+   where no coarse window fits, the fits started a window's radius about the prediction find
+   no saddle that fits better (a smaller sigma) within the reach and over a pixel from it.
    Each corner's sigma is its fit's own (its residuals taken as noise): where the quadratic
    misfits a shallow saddle it overstates the error (0.6-0.9 px at 0.05-0.15 px off: corpus
    view 89) and is an upper bound.
@@ -945,6 +947,10 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
 #: How far (in squares) a corner grown past the markers may lie from its prediction.
 _REACH = 0.15
 
+#: Where growth makes no coarse search, its fit is checked against fits started this many
+#: windows' radii about the prediction (:func:`_place_corners`).
+_AROUND = np.array([[a, b] for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0) if a or b])
+
 
 def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     """+1 where corner ``cand``'s square on its (+x, +y) side is black, -1 where it holds a
@@ -1152,7 +1158,9 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     on, ``factor`` times smaller: a window and smoothing of a fifth and a twelfth of the
     square, the window no wider than keeps clear of the corner's markers, as many steps as
     the reach takes; skipped where no window of 2 px fits) finds a corner that the corners beside it
-    predict a few pixels off, as through a fisheye's rim. ``others`` (K, 4, 2): the places
+    predict a few pixels off, as through a fisheye's rim; where it is skipped, the fits started
+    a window's radius about the prediction (:data:`_AROUND`) must find no saddle that fits
+    better (a smaller sigma) within the reach and more than a pixel from the fit. ``others`` (K, 4, 2): the places
     of each corner's neighbours along the board's rows and columns as predicted with it; a
     corner must end at least twice as near its own place as any of theirs (a neighbour's
     junction is not taken for it). Its two black squares must be dark where ``u``, ``v`` (a
@@ -1199,6 +1207,23 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
         ok = np.isfinite(moved) & typical.passes(sg, np.full(len(k), r), _SIGMA_RATIO, np.full(len(k), sm),
                                                  _chirality(board, cand[k]), res) & (
             moved <= np.maximum(1.5 * factor, 0.1 * size[k])) & fit_inside(q, int(r), full.shape)
+        # Without a coarse search, the fit from the prediction ends on the saddle whose basin
+        # holds it: the fits from a window's radius about the prediction must find none that fits
+        # better (a smaller sigma), within the reach and more than a pixel from it. On thin margins
+        # (markers of 85-90 % of the square) seen through a fisheye's rim, a prediction 2 px off
+        # led a fit of 2 px to a crossing of margin and bits 2.8-3.5 px from the corner, sigma
+        # 0.28-0.53 px, where the fits about it found the corner, 0.06-0.15 (wide-board probe
+        # views 116 and 410).
+        plain = ok & (rc[k] < 2)
+        if start_at is not None:
+            plain &= ~np.isfinite(start_at[k]).all(axis=1)
+        if plain.any():
+            w = np.flatnonzero(plain)
+            qa, sa = refine_patches(full, (pred[k][w, None, :] + float(r) * _AROUND).reshape(-1, 2), int(r), sm)[:2]
+            qa, sa = qa.reshape(len(w), len(_AROUND), 2), sa.reshape(len(w), len(_AROUND))
+            apart = np.hypot(*(qa - q[w, None, :]).transpose(2, 0, 1)) > 1.0
+            within = np.hypot(*(qa - pred[k][w, None, :]).transpose(2, 0, 1)) <= _REACH * size[k][w, None]
+            ok[w[(np.isfinite(sa) & (sa < sg[w, None]) & apart & within).any(axis=1)]] = False
         # (Not the circle clear of the markers: a grown corner's prediction is only its
         # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
         # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
