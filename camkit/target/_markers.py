@@ -45,6 +45,29 @@ def refine_patches(grey: np.ndarray, pts: np.ndarray, r: int, sigma: float,
     return (q - shift, *rest)
 
 
+#: The starts, in windows' radii about a prediction, of the fits :func:`better_saddle_near`
+#: compares a fit with.
+AROUND = np.array([[a, b] for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0) if a or b])
+
+
+def better_saddle_near(grey: np.ndarray, pred: np.ndarray, q: np.ndarray, sig: np.ndarray, r: int,
+                       sigma: float, reach: np.ndarray) -> np.ndarray:
+    """Which saddle fits (window ``r``, smoothing ``sigma``) from the predictions ``pred`` (K, 2),
+    ended at ``q`` with sigmas ``sig`` (K,), have a saddle that fits better (a smaller sigma)
+    more than a pixel from them and within ``reach`` (K,) of the prediction, found by the fits
+    started a window's radius about the prediction (:data:`AROUND`). A fit from a prediction
+    ends at the saddle whose basin holds it; a junction with another saddle a few pixels off
+    (a thin margin's crossing with a marker's bits, a small corner square's far side) can
+    hold the prediction in the wrong basin."""
+    if not len(pred):
+        return np.zeros(0, dtype=bool)
+    qa, sa = refine_patches(grey, (pred[:, None, :] + float(r) * AROUND).reshape(-1, 2), r, sigma)[:2]
+    qa, sa = qa.reshape(len(pred), len(AROUND), 2), sa.reshape(len(pred), len(AROUND))
+    apart = np.hypot(*(qa - q[:, None, :]).transpose(2, 0, 1)) > 1.0
+    within = np.hypot(*(qa - pred[:, None, :]).transpose(2, 0, 1)) <= reach[:, None]
+    return (np.isfinite(sa) & (sa < sig[:, None]) & apart & within).any(axis=1)
+
+
 def is_x_corner(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> np.ndarray:
     """Which points are X-junctions: on a circle of radius ``rho`` (per point, pixels) the shade
     crosses its mean four times, with contrast, and is point-symmetric (opposite quadrants

@@ -48,20 +48,23 @@ Detection reads the tags with the marker machinery ChArUco uses (:mod:`camkit.ta
 4. each corner at its saddle point (camkit's sub-pixel estimator; the X-junction's circle
    and the fit's reach scaled by the tag's shortest side, the window and its smoothing by
    how narrow the tag is, its area over its longer sides: a tilted tag's border and corner
-   squares are narrow across the tilt, and a sheared one is narrower than its shortest
-   side; near the image's edge the window shrinks to fit inside it), with its sigma; a fit
-   that does not converge, whose window does not fit inside the image, moves more than 0.45
-   of a corner square (the next junction is a square away) or is not an X-junction is
-   dropped, and tried again from the corners found around it (held to the grown points'
-   sigma test below: no code vouches for such a corner); then the
-   points of tags not read (too small, blurred, or bent by a lens past reading through their
-   four corners) are reached from those found, junction by junction (completing a rectangle
-   of three found points, else continuing a row or column), each kept within a quarter of a
-   corner square of its prediction, nearer it than its neighbours' places, on no other
-   point, and with a sigma at most 1.5 times the typical one for its window (the median of
-   the tags' corners' fits, or where higher, of those with a window within a pixel of it
-   refitted with it: a fit's sigma grows with its window); a corner whose sigma is over
-   twice that is dropped;
+   squares are narrow across the tilt, and a sheared one is narrower than its shortest side;
+   the smoothing less where the window and 2.5 of its sigmas would reach past the junction's
+   narrow width, to 1 px; near the image's edge the window shrinks to fit inside it), with
+   its sigma; a fit that does not converge, whose window does not fit inside the image,
+   moves more than 0.45 of a corner square (the next junction is a square away), is not an
+   X-junction, or beside which the fits started a window's radius about its prediction find
+   a saddle that fits better (a smaller sigma) within that reach and over a pixel from it (a
+   small corner square's far side is a saddle too), is dropped, and tried again from the
+   corners found around it (held to the grown points' sigma test below: no code vouches for
+   such a corner); then the points of tags not read (too small, blurred, or bent by a lens
+   past reading through their four corners) are reached from those found, junction by
+   junction (completing a rectangle of three found points, else continuing a row or column),
+   each kept within a quarter of a corner square of its prediction, nearer it than its
+   neighbours' places, on no other point, and with a sigma at most 1.5 times the typical one
+   for its window (the median of the tags' corners' fits, or where higher, of those with a
+   window within a pixel of it refitted with it: a fit's sigma grows with its window); a
+   corner whose sigma is over twice that is dropped;
 5. each tag is read again through its corners as found (one that reads as no code, through
    the lens strengths the first reading tries, then at its cells' middles alone): a tag
    that no longer reads as itself (a corner at another junction or in a corner square turns
@@ -95,6 +98,7 @@ from camkit.target._markers import (
     _rims,
     add_marker,
     apart_from_found,
+    better_saddle_near,
     confirm_markers,
     consistent_points,
     drop_poor_fits,
@@ -308,7 +312,8 @@ def _from_tags(grid: AprilGrid, full: np.ndarray, found: dict[int, list[np.ndarr
     out = np.full((N, 2), np.nan)
     sig = np.full(N, np.nan)
     win_of = np.zeros(N, dtype=np.int64)
-    win = _refine(grid, full, ids, pred, tag_px, narrow_px, factor, out, sig, win_of)
+    sm_of = np.zeros(N)  # each found corner's window and smoothing
+    win = _refine(grid, full, ids, pred, tag_px, narrow_px, factor, out, sig, win_of, sm_of)
     side_of, narrow_of = np.zeros(N), np.zeros(N)
     side_of[ids] = tag_px
     narrow_of[ids] = narrow_px
@@ -327,24 +332,24 @@ def _from_tags(grid: AprilGrid, full: np.ndarray, found: dict[int, list[np.ndarr
         if not ok.any():
             break
         _refine(grid, full, again[ok], p2[ok], side_of[again[ok]], narrow_of[again[ok]], factor, out, sig, win_of,
-                res_retried)
+                sm_of, res_retried)
         retried |= np.isfinite(out).all(axis=1) & ~seen
     # A fit's sigma is judged against the tags' corners refitted with its own window.
-    typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor))
+    typical = TypicalSigma(full, out, sig, win_of, lambda r: _smoothing(r, factor), sm_of)
     # The corners retried are held to the grown corners' test (no code vouches for them: the
     # fit at their tag's corner failed): where the fit took a blur's saddle beside the
     # junction, its sigma was 0.14-0.9 px (19 of 20 such fits), and under 0.12 px for 123 of
     # the 126 at the junction (AprilGrid corpus, 150 views of 0-299).
     r = np.flatnonzero(retried)
     if len(r):
-        poor = r[~_unvouched_fit_passes(typical, sig[r], win_of[r], res_retried[r])]
+        poor = r[~_unvouched_fit_passes(typical, sig[r], win_of[r], sm_of[r], res_retried[r])]
         out[poor] = np.nan
         sig[poor] = np.nan
     # Corners of tags not read (too small, blurred, or bent by the lens past reading through
     # their four corners), reached from the corners found, junction by junction.
     res_of = np.full(N, np.nan)  # the grown points' fits' residuals (TypicalSigma.passes)
-    _grow(grid, full, out, sig, factor, win_of, res_of, typical)
-    drop_poor_fits(out, sig, typical, win_of, res=res_of)
+    _grow(grid, full, out, sig, factor, win_of, sm_of, res_of, typical)
+    drop_poor_fits(out, sig, typical, win_of, sm_of, res=res_of)
     # Each tag read again through its corners as found (the quad's where one is missing): a
     # corner at another junction, or in a corner square, turns the tag's cells and border
     # away from its code; such a tag's corners go.
@@ -557,9 +562,11 @@ def _unjoined(grid: AprilGrid, quads: dict[int, np.ndarray], factor: int, bend: 
 
 def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray, tag_px: np.ndarray,
             narrow_px: np.ndarray, factor: int, out: np.ndarray, sig: np.ndarray, win_of: np.ndarray,
-            res_of: np.ndarray | None = None, reach: float = 0.45) -> np.ndarray:
+            sm_of: np.ndarray, res_of: np.ndarray | None = None, reach: float = 0.45) -> np.ndarray:
     """The corners ``ids`` at their saddle points from ``pred``, written into ``out``, ``sig``,
-    ``win_of`` (the window) and ``res_of`` (the fit's residuals, where given) where the fit
+    ``win_of`` (the window), ``sm_of`` (its smoothing: :func:`_smoothing`, less where the
+    window and 2.5 smoothing sigmas would reach past the junction's narrow width, to 1 px in
+    quarter pixels) and ``res_of`` (the fit's residuals, where given) where the fit
     converges within ``reach`` of a corner square of the prediction (the nearest other
     junction is a corner square away) and the point is an X-junction on a circle inside its
     clean radius (the tag's border and the corner square, the smaller). Returns the windows
@@ -577,19 +584,30 @@ def _refine(grid: AprilGrid, full: np.ndarray, ids: np.ndarray, pred: np.ndarray
     # views 1250, 1298).
     edge = np.minimum.reduce([pred[:, 0], W - 1 - pred[:, 0], pred[:, 1], H - 1 - pred[:, 1]])
     win = np.maximum(np.minimum(win, np.floor(edge - 0.5).astype(int) - 2), 2)
-    for r in np.unique(win):  # one fit per window size
-        k = win == r
-        # The smoothing follows the window where the junction is narrow (a corner square seen
-        # obliquely: more smoothing than that pulls the saddle towards the tag).
-        q, sg, res = refine_patches(full, pred[k], int(r), _smoothing(int(r), factor), residuals=True)
+    # The smoothing follows the window, and keeps with it inside the junction's narrow width (a
+    # corner square seen obliquely: more smoothing pulls the saddle towards the tag; tag16h5
+    # tags of 20-30 px, spacing 0.23, 64 degrees from square on: corner squares 4.7 px across,
+    # saddles 0.6 px off at 1.5 px, wide-board probe view 32).
+    full_sm = np.array([_smoothing(int(r), factor) for r in win])
+    smooth = np.clip(np.floor((narrow - win) / 2.5 * 4) / 4, 1.0, full_sm)
+    for r, sm in sorted(set(zip(win.tolist(), smooth.tolist(), strict=True))):  # one fit per window and smoothing
+        k = (win == r) & (smooth == sm)
+        q, sg, res = refine_patches(full, pred[k], int(r), sm, residuals=True)
         moved = np.hypot(*(q - pred[k]).T)
-        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= np.maximum(1.5 * factor, reach * grid.tag_spacing
-                                                                          * tag_px[k]))
+        far = np.maximum(1.5 * factor, reach * grid.tag_spacing * tag_px[k])
+        ok = np.isfinite(moved) & np.isfinite(sg) & (moved <= far)
         ok &= fit_inside(q, int(r), full.shape)
         ok[ok] = is_x_corner(full, q[ok], np.maximum(0.6 * clean[k][ok], 1.5))
+        # A corner square's far side is a saddle too, a few pixels off: a prediction 2 px off
+        # the junction (a quad's corner seen 64 degrees from square on) can lie in its basin.
+        # The fits from a window's radius about the prediction must find none that fits
+        # better within the reach (wide-board probe view 32: saddles 2.9-3.1 px off, sigma
+        # 0.044-0.050 px, the corners' 0.023-0.025).
+        ok[ok] = ~better_saddle_near(full, pred[k][ok], q[ok], sg[ok], int(r), sm, far[ok])
         out[ids[k][ok]] = q[ok]
         sig[ids[k][ok]] = sg[ok]
         win_of[ids[k][ok]] = r
+        sm_of[ids[k][ok]] = sm
         if res_of is not None:
             res_of[ids[k][ok]] = res[ok]
     return win
@@ -654,17 +672,18 @@ _GROWN_REACH = 0.25
 _MAX_GROWN_LOW_CONTRAST_SIGMA = 0.1
 
 
-def _unvouched_fit_passes(typical: TypicalSigma, sig: np.ndarray, win: np.ndarray, res: np.ndarray) -> np.ndarray:
+def _unvouched_fit_passes(typical: TypicalSigma, sig: np.ndarray, win: np.ndarray, sm: np.ndarray,
+                          res: np.ndarray) -> np.ndarray:
     """Which saddle fits that no tag's code vouches for (points grown past the tags, corners
     tried again from their neighbours) are kept: sigma ``sig`` at most 1.5 times
-    ``typical``'s for the window ``win``, or residuals ``res`` at most that times the typical
+    ``typical``'s for the window ``win`` and smoothing ``sm``, or residuals ``res`` at most that times the typical
     ones with a sigma of at most :data:`_MAX_GROWN_LOW_CONTRAST_SIGMA`
     (:meth:`~camkit.target._markers.TypicalSigma.passes`)."""
-    return typical.passes(sig, win, 1.5, res=res, cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)
+    return typical.passes(sig, win, 1.5, sm, res=res, cap=_MAX_GROWN_LOW_CONTRAST_SIGMA)
 
 
 def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, factor: int,
-          win_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma) -> None:
+          win_of: np.ndarray, sm_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma) -> None:
     """Add the grid's points next to found ones (``out``, NaN where not found), round by round:
     each predicted from the points found beside it on the grid (:func:`extend_lattice`), fitted
     and tested as :func:`_refine` does, and kept where it ends twice as near its own predicted
@@ -690,8 +709,8 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
             continue
         cand, pred, tag_px, narrow_px, others = cand[ok], pred[ok], tag_px[ok], narrow_px[ok], others[ok]
         tmp, tsig, twin = np.full_like(out, np.nan), np.full_like(sig, np.nan), np.zeros_like(win_of)
-        tres = np.full_like(sig, np.nan)
-        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, twin, tres, _GROWN_REACH)
+        tres, tsm = np.full_like(sig, np.nan), np.zeros_like(sig)
+        _refine(grid, full, cand, pred, tag_px, narrow_px, factor, tmp, tsig, twin, tsm, tres, _GROWN_REACH)
         q = tmp[cand]
         got = np.isfinite(q).all(axis=1)
         own = np.hypot(*(q - pred).T)
@@ -699,8 +718,9 @@ def _grow(grid: AprilGrid, full: np.ndarray, out: np.ndarray, sig: np.ndarray, f
         got &= 2.0 * own < theirs
         got[got] = apart_from_found(q[got], out[np.isfinite(out).all(axis=1)],
                                     np.maximum(1.5 * factor, 0.25 * grid.tag_spacing * tag_px[got]))
-        got[got] = _unvouched_fit_passes(typical, tsig[cand[got]], twin[cand[got]], tres[cand[got]])
+        got[got] = _unvouched_fit_passes(typical, tsig[cand[got]], twin[cand[got]], tsm[cand[got]], tres[cand[got]])
         out[cand[got]] = q[got]
         sig[cand[got]] = tsig[cand[got]]
         win_of[cand[got]] = twin[cand[got]]
+        sm_of[cand[got]] = tsm[cand[got]]
         res_of[cand[got]] = tres[cand[got]]

@@ -135,6 +135,7 @@ from camkit.target._markers import (
     TypicalSigma,
     add_marker,
     apart_from_found,
+    better_saddle_near,
     confirm_markers,
     drop_poor_fits,
     find_markers,
@@ -947,10 +948,6 @@ def _lattice_reads(board: Charuco, g: np.ndarray) -> Iterator[tuple[float, float
 #: How far (in squares) a corner grown past the markers may lie from its prediction.
 _REACH = 0.15
 
-#: Where growth makes no coarse search, its fit is checked against fits started this many
-#: windows' radii about the prediction (:func:`_place_corners`).
-_AROUND = np.array([[a, b] for a in (-1.0, 0.0, 1.0) for b in (-1.0, 0.0, 1.0) if a or b])
-
 
 def _square_signs(board: Charuco, cand: np.ndarray) -> np.ndarray:
     """+1 where corner ``cand``'s square on its (+x, +y) side is black, -1 where it holds a
@@ -1159,7 +1156,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     square, the window no wider than keeps clear of the corner's markers, as many steps as
     the reach takes; skipped where no window of 2 px fits) finds a corner that the corners beside it
     predict a few pixels off, as through a fisheye's rim; where it is skipped, the fits started
-    a window's radius about the prediction (:data:`_AROUND`) must find no saddle that fits
+    a window's radius about the prediction must find no saddle that fits
     better (a smaller sigma) within the reach and more than a pixel from the fit. ``others`` (K, 4, 2): the places
     of each corner's neighbours along the board's rows and columns as predicted with it; a
     corner must end at least twice as near its own place as any of theirs (a neighbour's
@@ -1219,11 +1216,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
             plain &= ~np.isfinite(start_at[k]).all(axis=1)
         if plain.any():
             w = np.flatnonzero(plain)
-            qa, sa = refine_patches(full, (pred[k][w, None, :] + float(r) * _AROUND).reshape(-1, 2), int(r), sm)[:2]
-            qa, sa = qa.reshape(len(w), len(_AROUND), 2), sa.reshape(len(w), len(_AROUND))
-            apart = np.hypot(*(qa - q[w, None, :]).transpose(2, 0, 1)) > 1.0
-            within = np.hypot(*(qa - pred[k][w, None, :]).transpose(2, 0, 1)) <= _REACH * size[k][w, None]
-            ok[w[(np.isfinite(sa) & (sa < sg[w, None]) & apart & within).any(axis=1)]] = False
+            ok[w[better_saddle_near(full, pred[k][w], q[w], sg[w], int(r), sm, _REACH * size[k][w])]] = False
         # (Not the circle clear of the markers: a grown corner's prediction is only its
         # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
         # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
