@@ -530,7 +530,7 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
     # (corners it leaves too uncertain are dropped: counted after it).
     _light(board, full, out, sig, win_of, sm_of, noise)
     # 9. Corners beside margins too thin for a misfit to be taken for noise: poor fits go.
-    _drop_unresolved(board, out, sig, _margins(board, out, cand, u, v), typical, win_of, sm_of, chir)
+    _drop_unresolved(board, out, sig, cand, u, v, typical, win_of, sm_of, chir)
     n_found = int(np.isfinite(out).all(axis=1).sum())
     if n_found == 0:
         return Detection.not_found(N, f"not found: {len(confirmed)} markers confirmed, but no corner beside them "
@@ -1132,17 +1132,18 @@ def _margins(board: Charuco, out: np.ndarray, cand: np.ndarray, u: np.ndarray, v
     g = out.reshape(ny, nx, 2)
     steps = []
     for axis in (1, 0):
-        fwd = np.full_like(g, np.nan)
-        bwd = np.full_like(g, np.nan)
         d = np.diff(g, axis=axis)
-        if axis == 1:
-            fwd[:, :-1], bwd[:, 1:] = d, d
-        else:
-            fwd[:-1], bwd[1:] = d, d
-        both = np.stack([fwd, bwd])
-        n = np.isfinite(both).all(axis=3).sum(axis=0)
-        steps.append(np.where((n > 0)[..., None], np.nansum(both, axis=0) / np.maximum(n, 1)[..., None],
-                              np.nan).reshape(-1, 2))
+        ok = np.isfinite(d).all(axis=2)
+        d = np.where(ok[..., None], d, 0.0)
+        total = np.zeros_like(g)
+        n = np.zeros((ny, nx))
+        lo, hi = [slice(None)] * 2, [slice(None)] * 2
+        lo[axis], hi[axis] = slice(None, -1), slice(1, None)
+        for sl in (tuple(lo), tuple(hi)):  # the step to the next corner, and from the last
+            total[sl] += d
+            n[sl] += ok
+        with np.errstate(invalid="ignore"):
+            steps.append((total / n[..., None]).reshape(-1, 2))  # NaN where neither neighbour is found
     su, sv = steps
     for st, given in ((su, u), (sv, v)):
         miss = ~np.isfinite(st[cand]).all(axis=1)
@@ -1154,11 +1155,12 @@ def _margins(board: Charuco, out: np.ndarray, cand: np.ndarray, u: np.ndarray, v
                         / longer, np.nan)
 
 
-def _drop_unresolved(board: Charuco, out: np.ndarray, sig: np.ndarray, margin: np.ndarray, typical: TypicalSigma,
-                     win_of: np.ndarray, sm_of: np.ndarray, chir: np.ndarray) -> None:
+def _drop_unresolved(board: Charuco, out: np.ndarray, sig: np.ndarray, cand: np.ndarray, u: np.ndarray,
+                     v: np.ndarray, typical: TypicalSigma, win_of: np.ndarray, sm_of: np.ndarray,
+                     chir: np.ndarray) -> None:
     """Step 9 of the detection: drop (NaN in ``out``, ``sig``) the corners placed by their
-    saddle fit (``win_of`` > 0) whose narrower white margin (``margin`` (N,), px across:
-    :func:`_margins`) is under :data:`_MIN_MARGIN_PX`, and whose fit's sigma is over
+    saddle fit (``win_of`` > 0) whose narrower white margin (px across: :func:`_margins`, with
+    ``cand``, ``u``, ``v``) is under :data:`_MIN_MARGIN_PX`, and whose fit's sigma is over
     :data:`_SIGMA_RATIO` times ``typical``'s for its window, smoothing ``sm_of`` and kind
     ``chir``: there the residuals' route (:meth:`TypicalSigma.passes`) is closed. It rests on
     a misfit that moves no saddle of a point-symmetric junction; a fit that sees the markers'
@@ -1167,8 +1169,11 @@ def _drop_unresolved(board: Charuco, out: np.ndarray, sig: np.ndarray, margin: n
     wide-board probe's view 616: markers of 80 % of the square, margins of 1.1 px, a fit 1.6 px
     off, even from the truth, its sigma 11 times the typical). Seen square on, such corners fit
     well and stay (squares of 20 px, margins of 1 px: within 0.12 px of the truth)."""
-    k = np.flatnonzero(np.isfinite(out).all(axis=1) & (win_of > 0) & (margin < _MIN_MARGIN_PX))
-    drop = k[~typical.passes(sig[k], win_of[k], _SIGMA_RATIO, sm_of[k], chir[k])]
+    k = np.flatnonzero(np.isfinite(out).all(axis=1) & (win_of > 0))
+    k = k[~typical.passes(sig[k], win_of[k], _SIGMA_RATIO, sm_of[k], chir[k])]
+    if not len(k):
+        return
+    drop = k[_margins(board, out, cand, u, v)[k] < _MIN_MARGIN_PX]
     out[drop] = np.nan
     sig[drop] = np.nan
 
