@@ -78,7 +78,8 @@ Detection reads the markers first, then places the chessboard corners by their s
    step 4, its sigma judged as there or, where over, its residuals (at most twice the
    typical) with the sigma the image's noise gives its fit at most a quarter of a pixel;
    where no coarse window fits, the fits started a window's radius about the prediction find
-   no saddle that fits better (a smaller sigma) within the reach and over a pixel from it.
+   no saddle that fits better (a smaller sigma) within the reach and over a pixel from it (a
+   corner refused so has two saddles in reach, and is not tried again in a later round).
    Each corner's sigma is its fit's own (its residuals taken as noise): where the quadratic
    misfits a shallow saddle it overstates the error (0.6-0.9 px at 0.05-0.15 px off: corpus
    view 89) and is an upper bound.
@@ -1218,7 +1219,7 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
                    pred: np.ndarray, size: np.ndarray, out: np.ndarray, sig: np.ndarray,
                    others: np.ndarray, u: np.ndarray, v: np.ndarray, win_of: np.ndarray,
                    sm_of: np.ndarray, res_of: np.ndarray, typical: TypicalSigma,
-                   start_at: np.ndarray | None = None) -> None:
+                   start_at: np.ndarray | None = None, ambiguous: np.ndarray | None = None) -> None:
     """Refine the corners ``cand`` from their predictions ``pred`` (squares of ``size`` px
     across) at their saddle points and keep (in ``out``, ``sig``) those that move at most a
     tenth of a square (1.5 px at least) from their saddle on a coarser scale, at most
@@ -1239,7 +1240,8 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
     with the sigma the image's noise gives the fit at most a quarter of a pixel
     (:meth:`TypicalSigma.passes`, :func:`~camkit.target._markers.noise_sigma`). ``start_at``
     (K, 2; NaN where none): where given, the fine fit starts there, with no coarse search (the
-    tests still measure from ``pred``)."""
+    tests still measure from ``pred``). ``ambiguous`` (N,): where given, set for the corners
+    refused for a better-fitting saddle beside their fit."""
     size_l = size / factor
     pred_l = (pred + 0.5) / factor - 0.5
     clear = _clearance(board, cand, u, v)
@@ -1288,7 +1290,10 @@ def _place_corners(board: Charuco, full: np.ndarray, level: np.ndarray, factor: 
             plain &= ~np.isfinite(start_at[k]).all(axis=1)
         if plain.any():
             w = np.flatnonzero(plain)
-            ok[w[better_saddle_near(full, pred[k][w], q[w], sg[w], int(r), sm, _REACH * size[k][w])]] = False
+            w = w[better_saddle_near(full, pred[k][w], q[w], sg[w], int(r), sm, _REACH * size[k][w])]
+            ok[w] = False
+            if ambiguous is not None:
+                ambiguous[cand[k][w]] = True
         # (Not the circle clear of the markers: a grown corner's prediction is only its
         # neighbours', and through a fisheye's rim, where the squares are slivers, a circle of
         # 1.7-3 px passes junctions of the markers' bits 5-8 px off: corpus views 390 and 491.)
@@ -1334,6 +1339,10 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         return
     # A grown corner's fit is no poorer than the final test (drop_poor_fits) allows: one that
     # is would seed the next round's predictions before that test removed it.
+    # A corner whose fit had a better-fitting saddle beside it has two saddles within its reach:
+    # it is not tried again (a later prediction, a few pixels off, led into the other's basin,
+    # and the fits about it did not find the first fitting better: wide-board view 618, 3 px).
+    ambiguous = np.zeros(len(out), dtype=bool)
     for cand, pred, u, v, others in lattice_rounds(out, nx, ny, xs, ys):
         u, v = u * s, v * s  # a square's steps
         size = np.fmin(np.hypot(*u.T), np.hypot(*v.T))
@@ -1345,11 +1354,12 @@ def _grow(board: Charuco, full: np.ndarray, level: np.ndarray, factor: int, out:
         start = np.full((len(cand), 2), np.nan) if dropped is None else dropped[cand]
         start[coarse] = np.nan
         inside = (np.isfinite(pred).all(axis=1) & np.isfinite(size) & (size >= 4)
-                  & (coarse | np.isfinite(start).all(axis=1)))
+                  & (coarse | np.isfinite(start).all(axis=1)) & ~ambiguous[cand])
         if not inside.any():
             continue
         _place_corners(board, full, level, factor, cand[inside], pred[inside], size[inside], out, sig,
-                       others[inside], u[inside], v[inside], win_of, sm_of, res_of, typical, start[inside])
+                       others[inside], u[inside], v[inside], win_of, sm_of, res_of, typical, start[inside],
+                       ambiguous)
 
 
 #: A corner is placed from the homography of the found corners around it

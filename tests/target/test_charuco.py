@@ -898,7 +898,7 @@ def test_two_markers_on_one_quad_are_not_both_confirmed():
     assert sorted(ok) == sorted(set(found) - {0, 16}) and set(homs) == set(ok)
 
 
-@pytest.mark.parametrize("seed", [434, 116, 410, 616])
+@pytest.mark.parametrize("seed", [434, 116, 410, 616, 618])
 def test_boards_drawn_wider_than_the_corpus_give_no_corner_off_its_place(seed):
     """Views of ``benchmarks.wide_boards`` that returned corners more than a pixel from their
     truth: 434 (ARUCO_ORIGINAL markers of 41 % of the square, two read twice: five corners
@@ -907,7 +907,10 @@ def test_boards_drawn_wider_than_the_corpus_give_no_corner_off_its_place(seed):
     margins 2.8 and 3.5 px from the corner, where the fits about it found the corner, fitting
     better), 616 (markers of 80 %, squares of 14 px through a fisheye, margins of 1.1 px
     across: a fit 1.6 px off, even from the truth, its sigma 11 times the typical, kept on its
-    residuals; beside margins under 1.35 px the sigma must pass)."""
+    residuals; beside margins under 1.35 px the sigma must pass), 618 (markers of 89 %, margins
+    under a pixel, nearly edge-on through a fisheye: the fit from a prediction 0.5 px off was
+    refused, a saddle 3 px off fitting better beside it, and a later round's prediction led into
+    that saddle; a corner with two saddles in reach is not tried again)."""
     from benchmarks.wide_boards import charuco_view
 
     board, _, _, _, img, truth, _ = charuco_view(seed)
@@ -915,7 +918,7 @@ def test_boards_drawn_wider_than_the_corpus_give_no_corner_off_its_place(seed):
     assert det.found
     d = np.hypot(*(det.pixels - truth.corners_px[det.ids]).T)
     assert (d <= 1.0).all(), (seed, det.ids[d > 1.0], d[d > 1.0])
-    assert len(det.ids) >= 0.9 * {434: 44, 116: 154, 410: 28, 616: 53}[seed]
+    assert len(det.ids) >= 0.9 * {434: 44, 116: 154, 410: 28, 616: 53, 618: 38}[seed]
 
 
 def test_a_corners_white_margin_across_is_measured_from_its_steps():
