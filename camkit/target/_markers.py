@@ -334,12 +334,6 @@ def _pool() -> ThreadPoolExecutor:
     return _POOL
 
 
-def window_radii(shape: tuple[int, ...]) -> tuple[int, ...]:
-    """:func:`find_quads`'s windows' half sides on an image of ``shape``: an 80th, a 30th and a
-    12th of its shorter side (3 px at least), each once."""
-    return tuple(sorted({max(3, min(shape[0], shape[1]) // k) for k in (80, 30, 12)}))
-
-
 def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple[int, ...] | None = None,
                cuts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
@@ -349,52 +343,28 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     wide at two pixels a cell, and each window is thresholded twice: 0.03 and 0.15 below the
     local mean (the stricter one parts junctions that blur joins). Each mask is made and its
     regions labelled on one thread, the masks side by side (:func:`_side_by_side`). ``radii``: the
-    windows' half sides, where not :func:`window_radii`'s.
+    windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
     ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
-    masks = _Masks(g, min_side, opening, cuts)
-    return masks.merged(masks.quads(window_radii(g.shape) if radii is None else radii))[0]
-
-
-class _Masks:
-    """:func:`find_quads`'s masks of one image, made where first asked for and kept: the quads
-    of a window's masks (one per offset below the mean), and those of several windows merged."""
-
-    def __init__(self, g: np.ndarray, min_side: int, opening: bool,
-                 cuts: tuple[np.ndarray, np.ndarray] | None) -> None:
-        H, W = g.shape
-        self.g, self.min_side, self.opening, self.cuts = g, min_side, opening, cuts
-        self.ii = scratch("integral", (H + 1, W + 1), np.float64)
-        markers_kernels.integral(g, self.ii)
-        self.offsets = (0.03, 0.15) if opening else (0.03,)
-        self.made: dict[tuple[int, float], np.ndarray] = {}
-
-    def quads(self, radii: tuple[int, ...]) -> list[np.ndarray]:
-        """Each mask's quads, windows ``radii`` (in turn, each at every offset), those not made
-        yet made side by side."""
-        masks = [(r, c) for r in radii for c in self.offsets]
-        todo = [m for m in masks if m not in self.made]
-        H, W = self.g.shape
-        for m, q in zip(todo, _side_by_side(
-                lambda i: _mask_quads(self.g, self.ii, *todo[i], self.opening, self.cuts, self.min_side), len(todo),
-                _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0), strict=True):
-            self.made[m] = q
-        return [self.made[m] for m in masks]
-
-    @staticmethod
-    def merged(per_mask: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-        """The masks' quads, one per marker (the windows find most markers more than once: the
-        first in the order of their centres' x kept), and each one's row in the masks' quads
-        one after the other."""
-        out = [q for q in per_mask if len(q)]
-        if not out:
-            return np.zeros((0, 4, 2)), np.zeros(0, dtype=np.int64)
-        allq = np.concatenate(out)
-        centre = allq.mean(axis=1)
-        span = np.ptp(allq, axis=1).max(axis=1)
-        order = np.lexsort((centre[:, 1], centre[:, 0]))
-        keep = np.ones(len(allq), dtype=bool)
-        markers_kernels.unique_quads(allq, centre, span, order, keep)
-        return allq[keep], np.flatnonzero(keep)
+    H, W = g.shape
+    ii = scratch("integral", (H + 1, W + 1), np.float64)
+    markers_kernels.integral(g, ii)
+    offsets = (0.03, 0.15) if opening else (0.03,)
+    if radii is None:
+        radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
+    masks = [(r, c) for r in radii for c in offsets]
+    out = [q for q in _side_by_side(lambda i: _mask_quads(g, ii, *masks[i], opening, cuts, min_side), len(masks),
+                                    _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0)
+           if len(q)]
+    if not out:
+        return np.zeros((0, 4, 2))
+    # One quad per marker: the windows find most markers more than once.
+    allq = np.concatenate(out)
+    centre = allq.mean(axis=1)
+    span = np.ptp(allq, axis=1).max(axis=1)
+    order = np.lexsort((centre[:, 1], centre[:, 0]))
+    keep = np.ones(len(allq), dtype=bool)
+    markers_kernels.unique_quads(allq, centre, span, order, keep)
+    return allq[keep]
 
 
 #: Markers are looked for first at a level whose longer side is at most this (2x2 means), then
@@ -543,9 +513,7 @@ class _Pyramid:
 
 
 def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_squares: float = 0.0,
-                 noise: float | None = None,
-                 enough: Callable[[dict[int, list[np.ndarray]], int], bool] | None = None
-                 ) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
+                 noise: float | None = None) -> tuple[dict[int, list[np.ndarray]], int, np.ndarray]:
     """The markers of dictionary ``d`` in the grey image ``full``: for each code read, the
     corners of every quad that holds it, (4, 2) full-image pixels in the code's order
     (top-left, top-right, bottom-right, bottom-left of the marker as the dictionary draws it),
@@ -567,12 +535,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     squares joined at some of its corners (a blurred junction joins their dark regions), and
     kept with the marker's own corners; one that still reads as nothing is read through a
     lens (:func:`_read_bent`), and kept with its corners as found (not refined to straight
-    edges). ``noise``: the image's (:func:`image_noise`), where already measured. ``enough``:
-    whether a level's reading (and its factor) leaves nothing for more windows to find (its
-    caller knows: every marker of its target read): on each level the middle window's masks
-    are read first, and where ``enough`` says so, the other windows' are not made (two masks'
-    labelling and their quads' reading). A marker's corners are then its quad from that window,
-    refined, where they were the first of the three windows' in the order of their centres.
+    edges). ``noise``: the image's (:func:`image_noise`), where already measured.
     """
     levels = _Pyramid(full)
     n_cells = d.marker_size + 2 * border
@@ -591,106 +554,45 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
         # A border three times the level's noise darker than its margin (a 2x2 mean halves it).
         contrast = max(0.15, 3.0 * noise / f)
         small_ok = f == 1 and contrast <= 0.5
-        masks = _Masks(g, int(np.ceil(MIN_CELL_PX * n_cells)) if small_ok else 2 * n_cells, border >= 2,
-                       _junction_cuts(g) if corner_squares > 0 else None)
-        radii = window_radii(g.shape)
-        args = (d, border, corner_squares, small_ok, contrast)
-        if enough is not None and len(radii) > 1:
-            # The middle window's masks alone first; the others where the caller asks for more,
-            # the quads read already not read again (each quad is read on its own).
-            mid = len(radii) // 2
-            own = masks.quads(radii[mid:mid + 1])
-            first, src = masks.merged(own)
-            read = _read_quads(g, first, *args)
-            level = _assemble(f, *read)
-            if not enough(level, f):
-                per = masks.quads(radii)
-                allq, where = masks.merged(per)
-                # Each quad's row in ``first`` where it is one of those (-1 where not).
-                before = sum(len(q) for q in per[:mid * len(masks.offsets)])
-                row_of = np.full(sum(len(q) for q in own) + 1, -1, dtype=np.int64)
-                row_of[src] = np.arange(len(src))
-                inside = (where >= before) & (where < before + len(row_of) - 1)
-                at = np.where(inside, row_of[np.where(inside, where - before, -1)], -1)
-                new = np.flatnonzero(at < 0)
-                fresh = _read_quads(g, allq[new], *args)
-                rows = [np.empty((len(allq),) + r.shape[1:], dtype=r.dtype) for r in read]
-                for r, old, x in zip(rows, read, fresh, strict=True):
-                    r[at >= 0] = old[at[at >= 0]]
-                    r[new] = x
-                level = _assemble(f, *rows)
-        else:
-            level = _read_level(g, f, masks.merged(masks.quads(radii))[0], *args)
+        quads = find_quads(g, int(np.ceil(MIN_CELL_PX * n_cells)) if small_ok else 2 * n_cells, opening=border >= 2,
+                           cuts=_junction_cuts(g) if corner_squares > 0 else None)
+        if small_ok and len(quads):
+            # The small quads (noise gives many) are read only where their border is a
+            # marker's.
+            small = np.ptp(quads, axis=1).min(axis=1) < 2 * n_cells
+            if small.any():
+                small[small] = ~_rims(g, quads[small], n_cells, border, contrast)
+                quads = quads[~small]
+        codes, turns, rimmed = (read_markers_rims(g, quads, d, border, rim_contrast=contrast) if len(quads)
+                                else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
+        if corner_squares > 0 and (codes < 0).any():
+            quads, codes, turns = _read_swollen(g, quads, codes, turns, d, border, n_cells * corner_squares)
+        bent = np.zeros(len(codes), dtype=bool)
+        if corner_squares > 0 and (codes < 0).any():
+            codes, turns, bent = _read_bent(g, quads, codes, turns, d, border)
+        if corner_squares == 0 and ((codes < 0) & rimmed).any():
+            quads, codes, turns = _read_refined(g, quads, codes, turns, rimmed, d, border)
+        # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
+        # lie up to a cell off where blur widens or narrows it).
+        # (Not those read through a lens: their sides bow, and lines through them miss the corners.)
+        read = (codes >= 0) & ~bent
+        if read.any():
+            quads = quads.copy()
+            quads[read] = refine_quads(g, quads[read], n_cells)
+        level: dict[int, list[np.ndarray]] = {}
+        # One entry per decoded quad; those read straight first (a marker read both ways keeps
+        # its refined corners).
+        # The code's corner j is the quad's corner (j - turns) % 4.
+        turned = (np.take_along_axis(quads, ((np.arange(4) - turns[:, None]) % 4)[:, :, None], axis=1) + 0.5) * f - 0.5
+        for j in np.argsort(bent, kind="stable").tolist():
+            if codes[j] >= 0:
+                add_marker(level, int(codes[j]), turned[j])
         if len(level) >= len(found):
             found = level  # the finer level's corners where it reads as much
         # A marker's narrowest side per cell, at this level.
         if len(level) >= 2 and np.median(narrowest_side(np.stack([c[0] for c in level.values()])) / f / n_cells) >= 2.0:
             break
     return found, f, g
-
-
-def _read_level(g: np.ndarray, f: int, quads: np.ndarray, d: ArucoDictionary, border: int,
-                corner_squares: float, small_ok: bool, contrast: float) -> dict[int, list[np.ndarray]]:
-    """:func:`find_markers`'s reading of the quads found on one pyramid level ``g`` (``f`` full
-    pixels a pixel): each code read, with the corners of every quad that holds it in
-    full-image pixels (see :func:`find_markers`)."""
-    return _assemble(f, *_read_quads(g, quads, d, border, corner_squares, small_ok, contrast))
-
-
-def _read_quads(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int, corner_squares: float,
-                small_ok: bool, contrast: float) -> tuple[np.ndarray, ...]:
-    """Each quad (K, 4, 2) read on its own (:func:`find_markers`): ``(corners, codes, turns,
-    bent)``, one row per quad (its corners as read: refined where read straight; code -1 where
-    it reads as nothing or is a small quad without a marker's border). Every step reads each
-    quad alone, so a quad's row is the same whatever quads are read with it."""
-    n_cells = d.marker_size + 2 * border
-    K = len(quads)
-    codes, turns = np.full(K, -1, dtype=np.int64), np.zeros(K, dtype=np.int64)
-    bent = np.zeros(K, dtype=bool)
-    keep = np.ones(K, dtype=bool)
-    if small_ok and K:
-        # The small quads (noise gives many) are read only where their border is a
-        # marker's.
-        small = np.ptp(quads, axis=1).min(axis=1) < 2 * n_cells
-        if small.any():
-            small[small] = ~_rims(g, quads[small], n_cells, border, contrast)
-            keep = ~small
-    rows = np.flatnonzero(keep)
-    q = quads[rows]
-    c, t, rimmed = (read_markers_rims(g, q, d, border, rim_contrast=contrast) if len(q)
-                    else (np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)))
-    if corner_squares > 0 and (c < 0).any():
-        q, c, t = _read_swollen(g, q, c, t, d, border, n_cells * corner_squares)
-    b = np.zeros(len(c), dtype=bool)
-    if corner_squares > 0 and (c < 0).any():
-        c, t, b = _read_bent(g, q, c, t, d, border)
-    if corner_squares == 0 and ((c < 0) & rimmed).any():
-        q, c, t = _read_refined(g, q, c, t, rimmed, d, border)
-    # The decoded quads' corners where their sides' edges meet (the region's extreme pixels
-    # lie up to a cell off where blur widens or narrows it).
-    # (Not those read through a lens: their sides bow, and lines through them miss the corners.)
-    read = (c >= 0) & ~b
-    if read.any():
-        q = q.copy()
-        q[read] = refine_quads(g, q[read], n_cells)
-    out = quads.copy()
-    out[rows], codes[rows], turns[rows], bent[rows] = q, c, t, b
-    return out, codes, turns, bent
-
-
-def _assemble(f: int, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray,
-              bent: np.ndarray) -> dict[int, list[np.ndarray]]:
-    """The markers of one level's quads read (:func:`_read_quads`), in full-image pixels and
-    their codes' order."""
-    level: dict[int, list[np.ndarray]] = {}
-    # One entry per decoded quad; those read straight first (a marker read both ways keeps
-    # its refined corners).
-    # The code's corner j is the quad's corner (j - turns) % 4.
-    turned = (np.take_along_axis(quads, ((np.arange(4) - turns[:, None]) % 4)[:, :, None], axis=1) + 0.5) * f - 0.5
-    for j in np.argsort(bent, kind="stable").tolist():
-        if codes[j] >= 0:
-            add_marker(level, int(codes[j]), turned[j])
-    return level
 
 
 def refine_quads(grey: np.ndarray, quads: np.ndarray, n_cells: int, iters: int = 2) -> np.ndarray:

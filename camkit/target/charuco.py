@@ -15,8 +15,7 @@ Layout, object points and ids are OpenCV's ``cv2.aruco.CharucoBoard`` (4.6 and l
 Detection reads the markers first, then places the chessboard corners by their saddle points:
 
 1. dark regions of an adaptive threshold (each pixel against the mean of a window around
-   it, three window sizes: the middle one first, the other two only where it does not read
-   every marker of the board), 4-connected; each region the size of a marker (two pixels a cell
+   it, three window sizes), 4-connected; each region the size of a marker (two pixels a cell
    at least, and on the full image down to 1.25 where the image's noise leaves such cells
    readable, their border read first) gives a quad (the farthest pixel from its centre, the
    farthest from that, and the farthest from the line through both on either side);
@@ -341,25 +340,14 @@ def _n_confirmed(layout: Charuco, found: dict[int, list[np.ndarray]], factor: in
                                layout.square / layout.marker, factor)[0])
 
 
-def _all_read(board: Charuco, found: dict[int, list[np.ndarray]], factor: int) -> bool:
-    """Whether every marker of the board is among those read with one window
-    (:func:`~camkit.target._markers.find_markers`'s ``enough``): the board is seen whole, and
-    its other windows would find no marker of it not found. (Where some are missing, the other
-    windows are made: on rendered corpus views 28, 125 and 243, whose markers the middle
-    window read six or more of, confirmed, they gave markers that step 3's recovery from
-    their neighbours did not, and 13 eligible corners: benchmarks/notes.md, fifty-second
-    session.)"""
-    return all(m in found for m in range(board.n_markers))
-
-
 def _detect(board: Charuco, image: np.ndarray) -> Detection:
     N = board.n_points
     full = _to_grey(image, lazy=True)
     # 1-2. Markers: quads whose cells read as a code.
     noise = image_noise(full)
-    ms, obj, _ = _layout(board)
-    found, factor, level = find_markers(full, board.aruco, noise=noise, enough=functools.partial(_all_read, board))
+    found, factor, level = find_markers(full, board.aruco, noise=noise)
     # 3. Ids against the board: one marker per id, confirmed by a neighbour where it belongs.
+    ms, obj, _ = _layout(board)
     confirmed, homs, side_px = confirm_markers(found, obj, ms, board.square / board.marker, factor)
     if confirmed and board.squares_y % 2 == 0:
         # The legacy setting moves every marker by one square along its row, but for the rows'

@@ -3,7 +3,6 @@ renders (partial boards, a second board, fisheye) and on OpenCV's tutorial photo
 
 from __future__ import annotations
 
-import functools
 import json
 
 import cv2
@@ -962,37 +961,3 @@ def test_thin_margins_seen_square_on_keep_their_corners():
     det = b.detect(img)
     assert det.n_found == b.n_points, det.message
     assert np.hypot(*(det.pixels - truth.corners_px[det.ids]).T).max() < 0.15
-
-
-def test_the_middle_windows_reading_stands_where_it_reads_every_marker_and_the_rest_is_the_three_windows(
-        monkeypatch):
-    """find_markers with ``enough`` (ChArUco: every marker of the board read) reads the middle
-    window's masks first. Where ``enough`` asks for more (view 3, a partial board, and 2 and 17
-    read so), the quads already read are not read again, and the reading is the three windows'
-    bit for bit (each quad is read on its own). Corpus views 2 and 17 (the whole board seen):
-    the same markers as the three windows read (each marker's quad from another window,
-    refined to its sides' edges: corners up to 0.2 px apart on view 17), and the same
-    chessboard corners within 0.01 px (0.002 px on view 17: each is fitted at its saddle)."""
-    import camkit.target.charuco as charuco
-    from benchmarks.charuco_corpus import view
-
-    whole = 0
-    for seed in (2, 3, 17):
-        board, _, _, _, img, _, _ = view(seed)
-        g = _to_grey(img, lazy=True)
-        three, f3, _ = find_markers(g, board.aruco)
-        again, fa, _ = find_markers(g, board.aruco, enough=lambda found, factor: False)
-        assert fa == f3 and again.keys() == three.keys()
-        for m in three:
-            assert len(again[m]) == len(three[m]) and all(np.array_equal(a, b) for a, b in zip(again[m], three[m], strict=True))
-        if not all(m in three for m in range(board.n_markers)):
-            continue
-        whole += 1
-        one, f1, _ = find_markers(g, board.aruco, enough=functools.partial(charuco._all_read, board))
-        assert f1 == f3 and one.keys() == three.keys()
-        det = board.detect(img)
-        with monkeypatch.context() as m:
-            m.setattr(charuco, "_all_read", lambda *a: False)
-            old = board.detect(img)
-        assert np.array_equal(det.ids, old.ids) and np.abs(det.pixels - old.pixels).max() < 0.01
-    assert whole == 2
