@@ -13,6 +13,7 @@ would call it.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import cv2
@@ -23,6 +24,8 @@ from benchmarks.harness import Case, median_time
 from camkit.io import read_image
 from camkit.render import default_camera, plan_views, render_target
 from camkit.target import Charuco
+from camkit.target._markers import find_markers, image_noise
+from camkit.target.checkerboard import _to_grey
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "charuco_opencv_tutorial"
 
@@ -78,4 +81,44 @@ def extra_tables() -> str:
             "met" if ours <= target else "MISSED")
         rows.append(f"| {name} | {ours * 1e3:.1f} ms | {theirs * 1e3:.1f} ms | {verdict} |\n")
     return ("| an image with no board (ChArUco 5x7 asked) | camkit | cv2 CharucoDetector | target |\n"
-            "|---|---|---|---|\n" + "".join(rows))
+            "|---|---|---|---|\n" + "".join(rows) + "\n" + _stage_table())
+
+
+def _stage_table(repeats: int = 15) -> str:
+    """Where the time goes on the real photos at 640x480: each side's marker stage and the
+    rest (its corners), per photo. camkit's marker stage is the grey, the image's noise and
+    ``find_markers`` (steps 1-2 of the detection); OpenCV's is
+    ``cv2.aruco.ArucoDetector.detectMarkers`` with the board's dictionary, the stage its
+    ``detectBoard`` runs first. Each photo's four calls alternate, the medians of ``repeats``."""
+    if not DATA.is_dir():
+        return ""
+    board = Charuco(5, 7, 0.04, 0.02, "DICT_6X6_250")
+    files = sorted((DATA / "images").glob("*.jpg"))
+    photos = [np.ascontiguousarray(read_image(p)[..., 0] if read_image(p).ndim == 3 else read_image(p)) for p in files]
+    det = _cv(board)
+    markers = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, board.dictionary)))
+
+    def ck_markers(img: np.ndarray) -> None:
+        full = _to_grey(img, lazy=True)
+        find_markers(full, board.aruco, noise=image_noise(full))
+
+    fns = (lambda img: board.detect(img), ck_markers, det.detectBoard, markers.detectMarkers)
+    times = np.zeros((len(photos), len(fns), repeats))
+    for img in photos:
+        for fn in fns:
+            fn(img)
+    for r in range(repeats):
+        for i, img in enumerate(photos):
+            for j, fn in enumerate(fns):
+                t0 = time.perf_counter()
+                fn(img)
+                times[i, j, r] = time.perf_counter() - t0
+    med = np.median(times, axis=2) * 1e3  # (photo, fn) ms
+    rows = []
+    for name, m in [*zip((f.name for f in files), med, strict=True), ("all five", med.sum(axis=0))]:
+        ck, ck_m, cv, cv_m = m
+        rows.append(f"| {name} | {ck_m:.1f} | {cv_m:.1f} | {ck - ck_m:.1f} | {cv - cv_m:.1f} | "
+                    f"{ck:.1f} | {cv:.1f} | {ck / cv:.2f} |\n")
+    return ("| ChArUco at 640x480, where the time goes (ms) | camkit markers | OpenCV markers | camkit corners "
+            "(the rest) | OpenCV corners (the rest) | camkit whole | OpenCV whole | ratio |\n"
+            "|---|---|---|---|---|---|---|---|\n" + "".join(rows))
