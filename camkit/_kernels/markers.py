@@ -4,6 +4,8 @@ homographies of the markers' small point sets."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -728,6 +730,137 @@ def box_shades(img: np.ndarray, a: float, b: float, px: np.ndarray, half: np.nda
             mean[k, p] = m
             var[k, p] = _pairwise_sum(dev, 0, G) / (G - 1)
 
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _solve4(N: np.ndarray, inv: np.ndarray) -> float:  # pragma: no cover - numba
+    """``inv`` = the inverse of the 4 x 4 ``N`` (Gauss-Jordan, partial pivoting); returns the
+    determinant of ``N`` scaled to a unit diagonal (0 where a pivot vanishes: ``inv`` then
+    undefined)."""
+    a = np.empty((4, 8))
+    s = np.empty(4)
+    for i in range(4):
+        s[i] = 1.0 / math.sqrt(N[i, i]) if N[i, i] > 0.0 else 0.0
+    for i in range(4):
+        for j in range(4):
+            a[i, j] = N[i, j] * s[i] * s[j]
+            a[i, 4 + j] = 1.0 if i == j else 0.0
+    det = 1.0
+    for c in range(4):
+        piv = c
+        for r in range(c + 1, 4):
+            if abs(a[r, c]) > abs(a[piv, c]):
+                piv = r
+        if not abs(a[piv, c]) > 0.0:
+            return 0.0
+        if piv != c:
+            det = -det
+            for j in range(8):
+                t = a[c, j]
+                a[c, j] = a[piv, j]
+                a[piv, j] = t
+        det *= a[c, c]
+        f = 1.0 / a[c, c]
+        for j in range(8):
+            a[c, j] *= f
+        for r in range(4):
+            if r != c:
+                g = a[r, c]
+                if g != 0.0:
+                    for j in range(8):
+                        a[r, j] -= g * a[c, j]
+    # (The scaled matrix's inverse, scaled back: N^-1 = S (S N S)^-1 S.)
+    for i in range(4):
+        for j in range(4):
+            inv[i, j] = a[i, 4 + j] * s[i] * s[j]
+    return det
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d: np.ndarray, noise: float,
+              n_box: int, misfit_share: float, theta: np.ndarray, cov: np.ndarray, seen: np.ndarray,
+              fits: np.ndarray, full_rank: np.ndarray) -> None:  # pragma: no cover - numba
+    """The light across each ChArUco corner from its mirrored boxes (step 8 of
+    :func:`camkit.target.charuco._light`): the boxes' shades ``s0``, ``s1`` and spreads ``v0``,
+    ``v1`` (K, P) at the offsets ``+d``, ``-d`` (K, P, 2 px) from the corner; half the pair's
+    difference ``D = M (m . d) + a . d`` (``M`` the pair's mean shade) fitted for ``theta`` =
+    (m, a) by weighted least squares, each pair's variance its boxes' spreads (the image's
+    ``noise`` squared at least) over ``4 n_box``. Writes ``theta[k]``, its covariance
+    ``cov[k]`` (4, 4) scaled by the residuals' chi-square per degree of freedom where over 1,
+    ``seen[k]`` (the reading's chi-square against no light), ``fits[k]`` (the residuals' RMS
+    within three of the pairs' noise sigmas plus ``misfit_share`` of the squares'
+    half-contrast: the brighter half of the pairs' shades against the rest) and
+    ``full_rank[k]`` (the normal matrix scaled to a unit diagonal has a determinant over
+    1e-9: places in two directions and two shades)."""
+    K, P = s0.shape
+    nn = noise * noise
+    dof = P - 4
+    N = np.empty((4, 4))
+    inv = np.empty((4, 4))
+    A = np.empty((P, 4))
+    D = np.empty(P)
+    w = np.empty(P)
+    M = np.empty(P)
+    for k in range(K):
+        vsum = 0.0
+        for p in range(P):
+            D[p] = 0.5 * (s0[k, p] - s1[k, p])
+            M[p] = 0.5 * (s0[k, p] + s1[k, p])
+            x0 = v0[k, p] if v0[k, p] > nn else nn
+            x1 = v1[k, p] if v1[k, p] > nn else nn
+            var = (x0 + x1) / (4.0 * n_box)
+            vsum += var
+            w[p] = 1.0 / var
+            A[p, 0] = M[p] * d[k, p, 0]
+            A[p, 1] = M[p] * d[k, p, 1]
+            A[p, 2] = d[k, p, 0]
+            A[p, 3] = d[k, p, 1]
+        b = np.zeros(4)
+        for i in range(4):
+            for j in range(4):
+                acc = 0.0
+                for p in range(P):
+                    acc += A[p, i] * w[p] * A[p, j]
+                N[i, j] = acc
+            acc = 0.0
+            for p in range(P):
+                acc += A[p, i] * w[p] * D[p]
+            b[i] = acc
+        det = _solve4(N, inv)
+        full_rank[k] = det > 1e-9
+        if not full_rank[k]:
+            continue
+        for i in range(4):
+            acc = 0.0
+            for j in range(4):
+                acc += inv[i, j] * b[j]
+            theta[k, i] = acc
+        chi = 0.0
+        rr = 0.0
+        for p in range(P):
+            r = D[p]
+            for i in range(4):
+                r -= A[p, i] * theta[k, i]
+            chi += r * r * w[p]
+            rr += r * r
+        chi /= dof
+        grow = chi if chi > 1.0 else 1.0
+        q = 0.0
+        for i in range(4):
+            for j in range(4):
+                cov[k, i, j] = inv[i, j] * grow
+                q += theta[k, i] * N[i, j] * theta[k, j]
+        seen[k] = q / grow
+        Ms = np.sort(M)
+        h = P // 2
+        lo = 0.0
+        hi = 0.0
+        for p in range(h):
+            lo += Ms[p]
+        for p in range(h, P):
+            hi += Ms[p]
+        contrast = 0.5 * (hi / (P - h) - lo / h)
+        fits[k] = math.sqrt(rr / dof) <= 3.0 * math.sqrt(vsum / P) + misfit_share * contrast
 
 def _make_read_cells(PARALLEL: int):
     """:func:`read_cells`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""

@@ -1527,36 +1527,16 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
         markers_kernels.box_shades(img, sa, sb, px, half, _BOX_X, _BOX_Y, mean, spread, inside)
         shades.append(mean)
         spreads.append(spread)
-    n = len(_BOX_X)
-    D = 0.5 * (shades[0] - shades[1])
-    M = 0.5 * (shades[0] + shades[1])
-    var = (np.fmax(noise ** 2, spreads[0]) + np.fmax(noise ** 2, spreads[1])) / (4.0 * n)
-    A = np.concatenate([M[..., None] * d, d], axis=2)  # (K, P, 4): m (2), a (2)
-    wt = 1.0 / var
-    AtW = A.transpose(0, 2, 1) * wt[:, None, :]
-    N_ = AtW @ A
-    # Places in two directions at least, with two shades: the normal matrix has full rank.
-    diag = np.diagonal(N_, axis1=1, axis2=2)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ok = inside & (np.linalg.det(N_ / np.sqrt(diag[:, :, None] * diag[:, None, :])) > 1e-9)
-    if not ok.any():
-        return
-    idx, c, d, D, M, A, wt, var, N_, AtW = (x[ok] for x in (idx, c, d, D, M, A, wt, var, N_, AtW))
-    cov = np.linalg.inv(N_)
-    theta = np.einsum("kij,kj->ki", cov, np.einsum("kij,kj->ki", AtW, D))
-    res = D - np.einsum("kaj,kj->ka", A, theta)
-    dof = A.shape[1] - A.shape[2]
-    chi2_dof = (res * res * wt).sum(axis=1) / dof
-    cov = cov * np.fmax(chi2_dof, 1.0)[:, None, None]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        seen = np.einsum("ki,kij,ki->k", theta, np.linalg.inv(cov), theta)
-    # The squares' half-contrast: the brighter half of the pairs (the white ones) against the rest.
-    Ms = np.sort(M, axis=1)
-    half_n = Ms.shape[1] // 2
-    contrast = 0.5 * (Ms[:, half_n:].mean(axis=1) - Ms[:, :half_n].mean(axis=1))
-    misfit = np.sqrt((res * res).sum(axis=1) / dof)
-    fits = misfit <= 3.0 * np.sqrt(var.mean(axis=1)) + _SHADE_MISFIT * contrast
-    read = seen > _SHADE_CHI2
+    # The four numbers from the ten pairs, each corner's fit its own (kernel
+    # :func:`~camkit._kernels.markers.light_fit`).
+    K = len(idx)
+    theta, cov = np.empty((K, 4)), np.empty((K, 4, 4))
+    seen, fits, full_rank = np.empty(K), np.empty(K, dtype=bool), np.empty(K, dtype=bool)
+    markers_kernels.light_fit(shades[0], shades[1], spreads[0], spreads[1], np.ascontiguousarray(d), float(noise),
+                              len(_BOX_X), _SHADE_MISFIT, theta, cov, seen, fits, full_rank)
+    read = inside & full_rank
+    with np.errstate(invalid="ignore"):
+        read[read] = seen[read] > _SHADE_CHI2
     if not read.any():
         return
     idx, c, theta, cov, fits = idx[read], c[read], theta[read], cov[read], fits[read]

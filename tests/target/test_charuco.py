@@ -395,6 +395,48 @@ def test_the_light_divided_out_of_a_junction_gives_its_saddle_back():
     assert np.hypot(*(back[0] - c0)) < 0.005, back[0] - c0
 
 
+
+def test_the_light_read_across_a_corner_is_the_weighted_least_squares_fit_and_its_chi_square():
+    """Step 8's reading (kernel ``light_fit``) against NumPy's weighted least squares on the
+    same pairs: the light's four numbers and their covariance (grown by the residuals'
+    chi-square per degree of freedom where over 1), and ``seen``, the reading's chi-square
+    against no light: the quadratic form theta^T C^-1 theta (the fifty-second session's NumPy
+    code summed theta_i^2 times the rows of C^-1 instead, and corrected the light of corners
+    whose reading was within its noise). Places along one line leave the fit rank-deficient."""
+    from camkit._kernels.markers import light_fit
+
+    rng = np.random.default_rng(5)
+    K, P, n_box, noise = 40, 10, 25, 0.01
+    d = rng.normal(0.0, 3.0, (K, P, 2))
+    d[-1] = np.outer(rng.normal(0.0, 3.0, P), [0.6, 0.8])  # one direction only: no fit
+    truth = rng.normal(0.0, 0.01, (K, 4))
+    truth[:10] = 0.0  # no light: seen is a chi-square of 4 degrees of freedom
+    M = rng.uniform(0.1, 0.9, (K, P))
+    D = M * (d * truth[:, None, :2]).sum(axis=2) + (d * truth[:, None, 2:]).sum(axis=2)
+    D += rng.normal(0.0, noise, (K, P)) * rng.uniform(0.5, 2.0, (K, 1))
+    v0 = rng.uniform(0.0, 2.0, (K, P)) * noise ** 2
+    v1 = rng.uniform(0.0, 2.0, (K, P)) * noise ** 2
+    theta, cov, seen = np.empty((K, 4)), np.empty((K, 4, 4)), np.empty(K)
+    fits, full = np.empty(K, dtype=bool), np.empty(K, dtype=bool)
+    light_fit(M + D, M - D, v0, v1, d, noise, n_box, 0.1, theta, cov, seen, fits, full)
+    assert not full[-1] and full[:-1].all()
+    for k in range(K - 1):
+        var = (np.fmax(noise ** 2, v0[k]) + np.fmax(noise ** 2, v1[k])) / (4.0 * n_box)
+        A = np.concatenate([M[k, :, None] * d[k], d[k]], axis=1)
+        sw = 1.0 / np.sqrt(var)
+        th, *_ = np.linalg.lstsq(A * sw[:, None], D[k] * sw, rcond=None)
+        res = D[k] - A @ th
+        chi = (res ** 2 / var).sum() / (P - 4)
+        C = np.linalg.inv((A / var[:, None]).T @ A) * max(chi, 1.0)
+        np.testing.assert_allclose(theta[k], th, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(cov[k], C, rtol=1e-9, atol=1e-18)
+        np.testing.assert_allclose(seen[k], th @ np.linalg.solve(C, th), rtol=1e-9)
+        Ms = np.sort(M[k])
+        bar = 3.0 * np.sqrt(var.mean()) + 0.1 * 0.5 * (Ms[5:].mean() - Ms[:5].mean())
+        assert fits[k] == (np.sqrt((res ** 2).sum() / (P - 4)) <= bar)
+    # Without light, seen is about chi-square(4); with it, far beyond.
+    assert np.median(seen[:10]) < 8.0 and np.median(seen[10:-1]) > 50.0, (seen[:10], seen[10:-1])
+
 @pytest.mark.parametrize("kwargs,match", [
     ({"dictionary": "DICT_5X5_101"}, "dictionary: expected one of"),
     ({"marker": 0.03}, r"marker: expected a marker smaller than its square \(0.03 m\), got 0.03 m"),
