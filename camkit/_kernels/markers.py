@@ -731,12 +731,13 @@ def box_shades(img: np.ndarray, a: float, b: float, px: np.ndarray, half: np.nda
             var[k, p] = _pairwise_sum(dev, 0, G) / (G - 1)
 
 
-
 @njit(cache=True, nogil=True, error_model="numpy")
-def _solve4(N: np.ndarray, inv: np.ndarray) -> float:  # pragma: no cover - numba
+def _inverse4(N: np.ndarray, inv: np.ndarray) -> float:  # pragma: no cover - numba
     """``inv`` = the inverse of the 4 x 4 ``N`` (Gauss-Jordan, partial pivoting); returns the
     determinant of ``N`` scaled to a unit diagonal (0 where a pivot vanishes: ``inv`` then
-    undefined)."""
+    undefined). (:func:`camkit._kernels.lattice._solve_lu` solves for one right-hand side and
+    gives no determinant: here the whole inverse, the covariance, and the rank test are
+    wanted.)"""
     a = np.empty((4, 8))
     s = np.empty(4)
     for i in range(4):
@@ -801,6 +802,7 @@ def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d:
     D = np.empty(P)
     w = np.empty(P)
     M = np.empty(P)
+    b = np.empty(4)
     for k in range(K):
         vsum = 0.0
         for p in range(P):
@@ -815,7 +817,6 @@ def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d:
             A[p, 1] = M[p] * d[k, p, 1]
             A[p, 2] = d[k, p, 0]
             A[p, 3] = d[k, p, 1]
-        b = np.zeros(4)
         for i in range(4):
             for j in range(4):
                 acc = 0.0
@@ -826,7 +827,7 @@ def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d:
             for p in range(P):
                 acc += A[p, i] * w[p] * D[p]
             b[i] = acc
-        det = _solve4(N, inv)
+        det = _inverse4(N, inv)
         full_rank[k] = det > 1e-9
         if not full_rank[k]:
             continue
@@ -861,6 +862,7 @@ def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d:
             hi += Ms[p]
         contrast = 0.5 * (hi / (P - h) - lo / h)
         fits[k] = math.sqrt(rr / dof) <= 3.0 * math.sqrt(vsum / P) + misfit_share * contrast
+
 
 def _make_read_cells(PARALLEL: int):
     """:func:`read_cells`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""

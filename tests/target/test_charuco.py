@@ -395,7 +395,6 @@ def test_the_light_divided_out_of_a_junction_gives_its_saddle_back():
     assert np.hypot(*(back[0] - c0)) < 0.005, back[0] - c0
 
 
-
 def test_the_light_read_across_a_corner_is_the_weighted_least_squares_fit_and_its_chi_square():
     """Step 8's reading (kernel ``light_fit``) against NumPy's weighted least squares on the
     same pairs: the light's four numbers and their covariance (grown by the residuals'
@@ -436,6 +435,7 @@ def test_the_light_read_across_a_corner_is_the_weighted_least_squares_fit_and_it
         assert fits[k] == (np.sqrt((res ** 2).sum() / (P - 4)) <= bar)
     # Without light, seen is about chi-square(4); with it, far beyond.
     assert np.median(seen[:10]) < 8.0 and np.median(seen[10:-1]) > 50.0, (seen[:10], seen[10:-1])
+
 
 @pytest.mark.parametrize("kwargs,match", [
     ({"dictionary": "DICT_5X5_101"}, "dictionary: expected one of"),
