@@ -62,36 +62,156 @@ def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _dark_row(g: np.ndarray, ii: np.ndarray, y: int, r: int, c: float, oy: np.ndarray) -> None:  # pragma: no cover
+    """Row ``y`` of :func:`dark_mask` into ``oy`` (W,). Where the window lies wholly inside the
+    row, its area is the row's one number and the loop runs on slices indexed from zero (so
+    that it vectorises; the same comparisons)."""
+    H, W = g.shape
+    y0 = max(y - r, 0)
+    y1 = min(y + r + 1, H)
+    hy = y1 - y0
+    top, bot, gy = ii[y0], ii[y1], g[y]
+    xa = min(r, W)
+    xb = max(W - r - 1, xa)
+    for x in range(xa):
+        x0 = max(x - r, 0)
+        x1 = min(x + r + 1, W)
+        tot = bot[x1] - top[x1] - bot[x0] + top[x0]
+        oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
+    if xb > xa:
+        area = float(hy * (2 * r + 1))
+        b1, t1, b0, t0, gg, oo = bot[2 * r + 1:], top[2 * r + 1:], bot[0:], top[0:], gy[r:], oy[r:]
+        for i in range(xb - xa):
+            tot = b1[i] - t1[i] - b0[i] + t0[i]
+            oo[i] = gg[i] < tot / area - c
+    for x in range(xb, W):
+        x0 = max(x - r, 0)
+        x1 = min(x + r + 1, W)
+        tot = bot[x1] - top[x1] - bot[x0] + top[x0]
+        oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) -> None:  # pragma: no cover
     """``out[y, x] = g[y, x] < mean of g over the (2r+1)^2 window (clipped at the borders) - c``,
-    from the integral image ``ii`` (:func:`integral`). Where the window lies wholly inside a
-    row, its area is the row's one number and the loop runs on slices indexed from zero (so
-    that it vectorises; the same comparisons). Serial: :func:`camkit.target._markers.find_quads`
-    makes its masks on threads side by side."""
-    H, W = g.shape
-    for y in range(H):
-        y0 = max(y - r, 0)
-        y1 = min(y + r + 1, H)
-        hy = y1 - y0
-        top, bot, gy, oy = ii[y0], ii[y1], g[y], out[y]
-        xa = min(r, W)
-        xb = max(W - r - 1, xa)
-        for x in range(xa):
-            x0 = max(x - r, 0)
-            x1 = min(x + r + 1, W)
-            tot = bot[x1] - top[x1] - bot[x0] + top[x0]
-            oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
-        if xb > xa:
-            area = float(hy * (2 * r + 1))
-            b1, t1, b0, t0, gg, oo = bot[2 * r + 1:], top[2 * r + 1:], bot[0:], top[0:], gy[r:], oy[r:]
-            for i in range(xb - xa):
-                tot = b1[i] - t1[i] - b0[i] + t0[i]
-                oo[i] = gg[i] < tot / area - c
-        for x in range(xb, W):
-            x0 = max(x - r, 0)
-            x1 = min(x + r + 1, W)
-            tot = bot[x1] - top[x1] - bot[x0] + top[x0]
-            oy[x] = gy[x] < tot / (hy * (x1 - x0)) - c
+    from the integral image ``ii`` (:func:`integral`), row by row (:func:`_dark_row`). Serial:
+    :func:`dark_masks` makes several at once."""
+    for y in range(g.shape[0]):
+        _dark_row(g, ii, y, r, c, out[y])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _count_runs(row: np.ndarray) -> int:  # pragma: no cover - numba
+    """The runs of set pixels of one mask row (uint8): a run starts where a set pixel follows a
+    clear one."""
+    c = np.int64(row[0])
+    for x in range(1, row.shape[0]):
+        c += row[x] > row[x - 1]
+    return c
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _write_runs(row: np.ndarray, a0: np.ndarray, a1: np.ndarray) -> int:  # pragma: no cover - numba
+    """One mask row's (uint8) runs' first and last columns into ``a0``, ``a1`` from slot 0, and
+    their count. Without branches: each pixel writes the next start and end slots, and a start
+    or an end moves its slot on (so the slot after the last run is written too: the arrays
+    hold one more than the row's runs)."""
+    W = row.shape[0]
+    ks = 0
+    ke = 0
+    prev = 0
+    for x in range(W):
+        v = np.int64(row[x])
+        a0[ks] = x
+        a1[ke] = x - 1
+        ks += v > prev
+        ke += v < prev
+        prev = v
+    if prev:
+        a1[ke] = W - 1
+        ke += 1
+    return ke
+
+
+def _make_dark_masks(PARALLEL: int):
+    """:func:`dark_masks`' kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def dark_masks(g: np.ndarray, ii: np.ndarray, radii: np.ndarray, offsets: np.ndarray, out: np.ndarray,
+                   counts: np.ndarray) -> None:  # pragma: no cover - numba
+        """``out[m]`` (H, W): :func:`dark_mask` of window half side ``radii[m]``, ``offsets[m]``
+        below its mean, and ``counts[m, y]`` its row ``y``'s runs of set pixels; the masks'
+        rows shared out together."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        H = g.shape[0]
+        M = radii.shape[0]
+        for t in prange(M * H):
+            m = t // H
+            y = t - m * H
+            _dark_row(g, ii, y, radii[m], offsets[m], out[m, y])
+            counts[m, y] = _count_runs(out[m, y].view(np.uint8))
+
+    return dark_masks
+
+
+_dark_masks_serial, _dark_masks_parallel = _make_dark_masks(0), _make_dark_masks(1)
+
+
+def dark_masks(g: np.ndarray, ii: np.ndarray, radii: np.ndarray, offsets: np.ndarray, out: np.ndarray,
+               counts: np.ndarray) -> None:
+    """Several dark masks of one image at once (kernel ``_make_dark_masks``), serial where small
+    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; the work counted in pixels and masks)."""
+    work = 1.2 * out.size
+    (_dark_masks_parallel if work >= PARALLEL_MIN_NS else _dark_masks_serial)(g, ii, radii, offsets, out, counts)
+
+
+def _make_mask_runs(PARALLEL: int):
+    """:func:`mask_runs`' kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
+
+    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
+    def mask_runs(masks: np.ndarray, start: np.ndarray, ry: np.ndarray, r0: np.ndarray,
+                  r1: np.ndarray) -> None:  # pragma: no cover - numba
+        """The runs of set pixels of each mask row ``t`` (masks (M, H, W) as M * H rows) into
+        ``ry``, ``r0``, ``r1`` from ``start[t]`` (their counts' running sum), in blocks of
+        rows: each block's rows written through its own buffer (a row's writer also writes the
+        slot after its runs, the next row's first, which another block may hold)."""
+        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
+            pass
+        M, H, W = masks.shape
+        rows = masks.reshape(M * H, W).view(np.uint8)
+        n_blocks = (M * H + 31) // 32
+        for blk in prange(n_blocks):
+            b0 = np.empty(W // 2 + 2, dtype=np.int32)
+            b1 = np.empty(W // 2 + 2, dtype=np.int32)
+            for t in range(32 * blk, min(32 * blk + 32, M * H)):
+                n = _write_runs(rows[t], b0, b1)
+                k = start[t]
+                y = t % H
+                for i in range(n):
+                    ry[k + i] = y
+                    r0[k + i] = b0[i]
+                    r1[k + i] = b1[i]
+
+    return mask_runs
+
+
+_mask_runs_serial, _mask_runs_parallel = _make_mask_runs(0), _make_mask_runs(1)
+
+
+def mask_runs(masks: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The runs of set pixels of each of ``masks`` (M, H, W), ``counts`` (M, H) per row
+    (:func:`dark_masks`): ``start`` (M + 1,), mask ``m``'s runs at ``start[m]:start[m + 1]``
+    of ``ry``, ``r0``, ``r1`` (int32: the run's row, first and last column), row by row, left
+    to right. Serial where small (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`)."""
+    M, H, _ = masks.shape
+    row_start = np.zeros(M * H + 1, dtype=np.int64)
+    np.cumsum(counts.reshape(-1), out=row_start[1:])
+    n = int(row_start[-1])
+    ry, r0, r1 = (np.empty(n, dtype=np.int32) for _ in range(3))
+    work = 0.6 * masks.size
+    (_mask_runs_parallel if work >= PARALLEL_MIN_NS else _mask_runs_serial)(masks, row_start, ry, r0, r1)
+    return row_start[::H], ry, r0, r1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -120,40 +240,19 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
-    """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1), int32.
-    Counted first (a run starts where a set pixel follows a clear one), then written without
-    branches: each pixel writes the next start and end slots, and a start or an end moves its
-    slot on."""
-    H, W = mask.shape
+    """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1), int32;
+    counted first (:func:`_count_runs`), then written (:func:`_write_runs`)."""
+    H = mask.shape[0]
     m = mask.view(np.uint8)
     n = 0
     for y in range(H):
-        row = m[y]
-        c = np.int64(row[0])
-        for x in range(1, W):
-            c += row[x] > row[x - 1]
-        n += c
+        n += _count_runs(m[y])
     ry = np.empty(n + 1, dtype=np.int32)  # one slot over: the last row's writes past its runs
     r0 = np.empty(n + 1, dtype=np.int32)
     r1 = np.empty(n + 1, dtype=np.int32)
     k = 0
     for y in range(H):
-        row = m[y]
-        a0 = r0[k:]  # the row's own slots, indexed from zero
-        a1 = r1[k:]
-        ks = 0
-        ke = 0
-        prev = 0
-        for x in range(W):
-            v = np.int64(row[x])
-            a0[ks] = x
-            a1[ke] = x - 1
-            ks += v > prev
-            ke += v < prev
-            prev = v
-        if prev:
-            a1[ke] = W - 1
-            ke += 1
+        ke = _write_runs(m[y], r0[k:], r1[k:])
         ry[k:k + ke] = y
         k += ke
     return n, ry[:n], r0[:n], r1[:n]
@@ -179,8 +278,17 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     made negative. Only the regions of the right area and box have their runs gathered (most
     regions of a threshold's mask are specks)."""
     nr, ry, r0, r1 = _runs(mask)
+    return _run_regions(nr, ry, r0, r1, min_area, max_area, min_side)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _run_regions(nr: int, ry: np.ndarray, r0: np.ndarray, r1: np.ndarray, min_area: int, max_area: int,
+                 min_side: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - numba
+    """:func:`region_quads` from the mask's ``nr`` runs (:func:`_runs`)."""
     parent = np.arange(nr).astype(np.int32)
     # Join each run to the runs of the row above that it overlaps (4-connected: a shared column).
+    # A root is its region's first run (the lower index wins), so parent[k] <= k throughout; the
+    # run's own root is carried along (only its unions move it).
     prev_start, prev_end = 0, 0
     i = 0
     while i < nr:
@@ -194,18 +302,22 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
                 while p < prev_end and r1[p] < r0[k]:
                     p += 1
                 q = p
+                a = k
                 while q < prev_end and r0[q] <= r1[k]:
-                    a, b = _find(parent, k), _find(parent, q)
+                    b = _find(parent, q)
                     if a != b:
                         if a < b:
                             parent[b] = a
                         else:
                             parent[a] = b
+                            a = b
                     q += 1
         prev_start, prev_end = i, j
         i = j
+    # Each run's root: its parent's, the parent's settled first (parent[k] <= k).
     n = 0
-    for k in range(nr):  # a root is its region's first run
+    for k in range(nr):
+        parent[k] = parent[parent[k]]
         n += parent[k] == k
     # Each run's region, numbered in raster order, and the regions' sums, added in the runs'
     # order.
@@ -215,7 +327,7 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     sxy = np.zeros((n, 2))
     g = 0
     for k in range(nr):
-        a = _find(parent, k)
+        a = parent[k]
         y, x0, x1 = ry[k], r0[k], r1[k]
         ln = x1 - x0 + 1
         if a == k:
@@ -307,6 +419,20 @@ def mask_quads(mask: np.ndarray, min_area: int, max_area: int, min_side: int) ->
     not taken from the hull has a box at most 8 times longer than wide; clockwise in the image
     (positive shoelace area, y down), in the regions' order."""
     stats, quads = region_quads(mask, min_area, max_area, min_side)
+    return _kept_quads(stats, quads)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def runs_quads(ry: np.ndarray, r0: np.ndarray, r1: np.ndarray, min_area: int, max_area: int,
+               min_side: int) -> np.ndarray:  # pragma: no cover - numba
+    """:func:`mask_quads` from a mask's runs (:func:`mask_runs`)."""
+    stats, quads = _run_regions(ry.shape[0], ry, r0, r1, min_area, max_area, min_side)
+    return _kept_quads(stats, quads)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _kept_quads(stats: np.ndarray, quads: np.ndarray) -> np.ndarray:  # pragma: no cover - numba
+    """:func:`mask_quads`' quads of :func:`region_quads`' regions."""
     n = stats.shape[0]
     keep = np.zeros(n, dtype=np.bool_)
     k = 0

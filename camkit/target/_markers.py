@@ -266,16 +266,14 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     return ids, turns, rimmed
 
 
-def _mask_quads(g: np.ndarray, ii: np.ndarray, r: int, c: float, opening: bool,
-                cuts: tuple[np.ndarray, np.ndarray] | None, min_side: int) -> np.ndarray:
-    """The quads of the dark regions of one mask (see :func:`find_quads`; window half side
-    ``r``, ``c`` below its mean), (K, 4, 2) clockwise: those whose four corners span most of
-    the region's area (a triangle or a blob's do not; kernel
-    :func:`camkit._kernels.markers.mask_quads`). Serial kernels (``nogil``) wholly, on this
-    thread's buffers: the masks are made and labelled on threads side by side."""
-    H, W = g.shape
-    dark = scratch("mask", (H, W), np.bool_)
-    markers_kernels.dark_mask(g, ii, r, c, dark)
+def _mask_quads(dark: np.ndarray, opening: bool, cuts: tuple[np.ndarray, np.ndarray] | None,
+                min_side: int) -> np.ndarray:
+    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise:
+    those whose four corners span most of the region's area (a triangle or a blob's do not;
+    kernel :func:`camkit._kernels.markers.mask_quads`), the mask opened and cut first. Serial
+    kernels (``nogil``) wholly, on this thread's buffer: the masks are labelled on threads side
+    by side."""
+    H, W = dark.shape
     if opening:
         opened = scratch("opened", (H, W), np.bool_)
         markers_kernels.cross_filter(dark, False, opened)
@@ -351,10 +349,23 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     offsets = (0.03, 0.15) if opening else (0.03,)
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
-    masks = [(r, c) for r in radii for c in offsets]
-    out = [q for q in _side_by_side(lambda i: _mask_quads(g, ii, *masks[i], opening, cuts, min_side), len(masks),
-                                    _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0)
-           if len(q)]
+    r_of = np.array([r for r in radii for _ in offsets], dtype=np.int64)
+    c_of = np.array([c for _ in radii for c in offsets])
+    M = len(r_of)
+    # The masks all at once, their rows shared out (and each row's runs counted).
+    dark = scratch("masks", (M, H, W), np.bool_)
+    counts = scratch("run_counts", (M, H), np.int64)
+    markers_kernels.dark_masks(g, ii, r_of, c_of, dark, counts)
+    helpers = _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0
+    if opening or cuts is not None:
+        found = _side_by_side(lambda i: _mask_quads(dark[i], opening, cuts, min_side), M, helpers)
+    else:
+        # Their runs, rows shared out; then each mask's regions labelled on its own thread.
+        start, ry, r0, r1 = markers_kernels.mask_runs(dark, counts)
+        found = _side_by_side(lambda i: markers_kernels.runs_quads(
+            ry[start[i]:start[i + 1]], r0[start[i]:start[i + 1]], r1[start[i]:start[i + 1]],
+            (min_side * min_side) // 2, (H * W) // 4, min_side), M, helpers)
+    out = [q for q in found if len(q)]
     if not out:
         return np.zeros((0, 4, 2))
     # One quad per marker: the windows find most markers more than once.

@@ -545,6 +545,52 @@ def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
             np.testing.assert_array_equal(out[sure], (g < mean - 0.05)[sure])
 
 
+def test_the_masks_made_together_and_their_runs_are_each_masks_own():
+    """dark_masks (several windows and offsets at once, rows shared out: both twins) gives each
+    mask dark_mask gives alone and each row's count of runs; mask_runs (both twins) the runs
+    _runs gives for each mask, and runs_quads on them the quads mask_quads gives; on noise
+    (many runs, rows that start or end set) and on a mask with rows wholly set or clear."""
+    from camkit._kernels import markers as mk
+
+    rng = np.random.default_rng(12)
+    g = rng.random((83, 97))
+    g[10:14] = 0.0  # rows wholly dark under a wide window
+    g[20:22] = 1.0
+    H, W = g.shape
+    ii = np.empty((H + 1, W + 1))
+    mk.integral(g, ii)
+    radii = np.array([1, 4, 30, 200])
+    offsets = np.array([0.03, 0.15, 0.03, -1.5])  # (the last: every pixel set)
+    for masks_fn, runs_fn in ((mk._dark_masks_serial, mk._mask_runs_serial),
+                              (mk._dark_masks_parallel, mk._mask_runs_parallel)):
+        masks = np.empty((4, H, W), dtype=bool)
+        counts = np.empty((4, H), dtype=np.int64)
+        masks_fn(g, ii, radii, offsets, masks, counts)
+        row_start = np.zeros(4 * H + 1, dtype=np.int64)
+        np.cumsum(counts.ravel(), out=row_start[1:])
+        ry, r0, r1 = (np.full(row_start[-1], -7, dtype=np.int32) for _ in range(3))
+        runs_fn(masks, row_start, ry, r0, r1)
+        start = row_start[::H]
+        n_runs = 0
+        for m in range(4):
+            one = np.empty((H, W), dtype=bool)
+            mk.dark_mask(g, ii, int(radii[m]), float(offsets[m]), one)
+            np.testing.assert_array_equal(masks[m], one)
+            n, want_y, want_0, want_1 = mk._runs(one)
+            d = np.diff(np.pad(one, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+            np.testing.assert_array_equal(counts[m], (d == 1).sum(axis=1))
+            a, b = start[m], start[m + 1]
+            assert b - a == n
+            np.testing.assert_array_equal(ry[a:b], want_y)
+            np.testing.assert_array_equal(r0[a:b], want_0)
+            np.testing.assert_array_equal(r1[a:b], want_1)
+            np.testing.assert_array_equal(mk.runs_quads(ry[a:b], r0[a:b], r1[a:b], 4, H * W // 4, 2),
+                                          mk.mask_quads(one, 4, H * W // 4, 2))
+            n_runs += n
+        assert masks[2, 10:14].all() and not masks[2, 20:22].any() and masks[3].all()
+        assert n_runs > 2000
+
+
 def test_the_buffers_kept_per_thread_stay_under_their_bound():
     """find_quads' work arrays (and a detection's dense grey) are kept per thread up to
     SCRATCH_MAX_BYTES in all: asked for more (a 12 MP image read at full resolution), they are
