@@ -244,6 +244,32 @@ def channel_sum_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def difference_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None:  # pragma: no cover - numba
+    """``hist[d]`` += the number of horizontal neighbours of ``img`` (H, W) uint8, every
+    ``step``-th row from the first, that differ by ``d`` either way. Four histograms, pairs
+    taken in turn (as :func:`channel_sum_histogram`)."""
+    H, W = img.shape
+    nb = hist.shape[0]
+    h0, h1, h2, h3 = np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64), np.zeros(nb, np.int64)
+    for y in range(0, H, step):
+        row = img[y]
+        x = 0
+        while x + 5 <= W:
+            a0, a1, a2, a3, a4 = np.int64(row[x]), np.int64(row[x + 1]), np.int64(row[x + 2]), np.int64(row[x + 3]), \
+                np.int64(row[x + 4])
+            h0[abs(a1 - a0)] += 1
+            h1[abs(a2 - a1)] += 1
+            h2[abs(a3 - a2)] += 1
+            h3[abs(a4 - a3)] += 1
+            x += 4
+        while x + 1 < W:
+            h0[abs(np.int64(row[x + 1]) - np.int64(row[x]))] += 1
+            x += 1
+    for v in range(nb):
+        hist[v] += h0[v] + h1[v] + h2[v] + h3[v]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def box_means(img: np.ndarray, cx: np.ndarray, cy: np.ndarray, half: np.ndarray, ceiling: float,
               mean: np.ndarray, spread: np.ndarray, clipped: np.ndarray) -> None:  # pragma: no cover - numba
     """The mean of ``img``'s pixels in the box of ``2 half[i] + 1`` pixels a side centred on

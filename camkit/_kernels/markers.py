@@ -113,24 +113,26 @@ def _count_runs(row: np.ndarray) -> int:  # pragma: no cover - numba
 @njit(cache=True, nogil=True, error_model="numpy")
 def _write_runs(row: np.ndarray, a0: np.ndarray, a1: np.ndarray) -> int:  # pragma: no cover - numba
     """One mask row's (uint8) runs' first and last columns into ``a0``, ``a1`` from slot 0, and
-    their count. Without branches: each pixel writes the next start and end slots, and a start
-    or an end moves its slot on (so the slot after the last run is written too: the arrays
-    hold one more than the row's runs)."""
+    their count. The row's changes first, without branches (each pixel writes its column to
+    the next slot of ``a0``, which a change moves on: so the slot after the last change is
+    written too, and ``a0`` holds one more than the row's changes), then split: they
+    alternate, a run's start and the column after its end."""
     W = row.shape[0]
-    ks = 0
-    ke = 0
+    k = 0
     prev = 0
     for x in range(W):
         v = np.int64(row[x])
-        a0[ks] = x
-        a1[ke] = x - 1
-        ks += v > prev
-        ke += v < prev
+        a0[k] = x
+        k += v ^ prev
         prev = v
-    if prev:
-        a1[ke] = W - 1
-        ke += 1
-    return ke
+    n = (k + 1) // 2
+    for i in range(k // 2):
+        a1[i] = a0[2 * i + 1] - 1
+    if k % 2:
+        a1[n - 1] = W - 1
+    for i in range(1, n):
+        a0[i] = a0[2 * i]
+    return n
 
 
 def _make_dark_masks(PARALLEL: int):
@@ -174,16 +176,16 @@ def _make_mask_runs(PARALLEL: int):
                   r1: np.ndarray) -> None:  # pragma: no cover - numba
         """The runs of set pixels of each mask row ``t`` (masks (M, H, W) as M * H rows) into
         ``ry``, ``r0``, ``r1`` from ``start[t]`` (their counts' running sum), in blocks of
-        rows: each block's rows written through its own buffer (a row's writer also writes the
-        slot after its runs, the next row's first, which another block may hold)."""
+        rows, each row through its block's buffers (:func:`_write_runs` writes past the row's
+        runs)."""
         if PARALLEL:  # (the closure's int keys the cache: the twins apart)
             pass
         M, H, W = masks.shape
         rows = masks.reshape(M * H, W).view(np.uint8)
         n_blocks = (M * H + 31) // 32
         for blk in prange(n_blocks):
-            b0 = np.empty(W // 2 + 2, dtype=np.int32)
-            b1 = np.empty(W // 2 + 2, dtype=np.int32)
+            b0 = np.empty(W + 1, dtype=np.int32)
+            b1 = np.empty(W // 2 + 1, dtype=np.int32)
             for t in range(32 * blk, min(32 * blk + 32, M * H)):
                 n = _write_runs(rows[t], b0, b1)
                 k = start[t]
@@ -242,20 +244,24 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
     """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1), int32;
     counted first (:func:`_count_runs`), then written (:func:`_write_runs`)."""
-    H = mask.shape[0]
+    H, W = mask.shape
     m = mask.view(np.uint8)
     n = 0
     for y in range(H):
         n += _count_runs(m[y])
-    ry = np.empty(n + 1, dtype=np.int32)  # one slot over: the last row's writes past its runs
-    r0 = np.empty(n + 1, dtype=np.int32)
-    r1 = np.empty(n + 1, dtype=np.int32)
+    ry = np.empty(n, dtype=np.int32)
+    r0 = np.empty(n, dtype=np.int32)
+    r1 = np.empty(n, dtype=np.int32)
+    b0 = np.empty(W + 1, dtype=np.int32)  # (:func:`_write_runs` writes past the row's runs)
+    b1 = np.empty(W // 2 + 1, dtype=np.int32)
     k = 0
     for y in range(H):
-        ke = _write_runs(m[y], r0[k:], r1[k:])
+        ke = _write_runs(m[y], b0, b1)
         ry[k:k + ke] = y
+        r0[k:k + ke] = b0[:ke]
+        r1[k:k + ke] = b1[:ke]
         k += ke
-    return n, ry[:n], r0[:n], r1[:n]
+    return n, ry, r0, r1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

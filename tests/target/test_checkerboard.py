@@ -829,6 +829,24 @@ def test_contrast_floor_follows_the_image():
     assert cb._image_noise(noisy) == pytest.approx(0.02, rel=0.05)
 
 
+def test_the_noise_of_an_8_bit_image_is_the_median_of_its_neighbours_differences():
+    """_image_noise on uint8 (its histogram kernel, difference_histogram) against the
+    definition in NumPy: 1.4826 times the median absolute difference of horizontal neighbours
+    over every fourth row (every 4m-th, m odd, on a large image), over sqrt 2; on images of
+    odd and even widths, one and two columns, and one large enough for m > 1; NaN with no
+    pair."""
+    from camkit.target import checkerboard as cb
+
+    rng = np.random.default_rng(21)
+    for H, W, spread in ((37, 53, 9), (40, 2, 40), (9, 64, 200), (800, 3000, 3)):
+        img = np.clip(rng.normal(128, spread, (H, W)), 0, 255).astype(np.uint8)
+        m = max(1, -(-img.size // (4 * cb._NOISE_SAMPLES))) | 1
+        d = np.abs(np.diff(img[::4 * m].astype(np.int64), axis=1))
+        assert cb._image_noise(img) == pytest.approx(1.4826 * np.median(d) / np.sqrt(2.0), rel=1e-12)
+    assert m == 3
+    assert np.isnan(cb._image_noise(np.zeros((5, 1), dtype=np.uint8)))
+
+
 def test_a_board_in_shade_beside_a_window(shared_data):
     """Backlight (issue 21: "dark, backlit"): OpenCV's right*.jpg photos dimmed to 15 %, a white
     window beside them (320 px), 1 grey level of noise. The image's range is the window's, the
