@@ -533,6 +533,15 @@ def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.n
     if m < 4:
         stats[g, 0] = -area
         return
+    # The largest quadrilateral in a convex polygon spans 2 / pi of its area at least (Sas,
+    # 1939: an n-gon's n / (2 pi) sin(2 pi / n), the least for an ellipse); a region that fills
+    # under 0.35 of that fills under 0.35 of the quad, and is left without the search.
+    hull2 = 0.0
+    for i in range(m):
+        hull2 += hx[i] * hy[i + 1] - hx[i + 1] * hy[i]
+    if area < 0.35 * 0.6366 * 0.5 * abs(hull2):
+        stats[g, 0] = -area
+        return
     best = 0.0
     bi, bj, bk, bl = 0, 1, 2, 3
     for i in range(m):
@@ -1049,6 +1058,82 @@ def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndar
     work = 9.0 * Hs.shape[0] * pts.shape[0]
     (_read_cells_parallel if work >= PARALLEL_MIN_NS else _read_cells_serial)(img, a, b, Hs, pts, n_cells, m, cell,
                                                                              white)
+@njit(cache=True, nogil=True, error_model="numpy")
+def _median(v: np.ndarray, work: np.ndarray) -> float:  # pragma: no cover - numba
+    """NumPy's median of ``v`` (NaN where any is NaN; two middle values' mean), sorted in
+    ``work`` (as long as ``v``)."""
+    q = v.shape[0]
+    work[:] = v
+    work.sort()  # NaN last
+    if q == 0 or np.isnan(work[q - 1]):
+        return np.nan
+    if q % 2:
+        return work[q // 2]
+    return (work[q // 2 - 1] + work[q // 2]) / 2.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def cell_verdicts(cell: np.ndarray, white: np.ndarray, ok: np.ndarray, n: int, border: int, rim_contrast: float,
+                  rim_to_refine: float, good: np.ndarray, rimmed: np.ndarray,
+                  bits: np.ndarray) -> None:  # pragma: no cover - numba
+    """What each quad's cells say (see :func:`camkit.target._markers.read_markers_rims`):
+    ``cell`` (K, n * n) the marker's cells row by row (a black border ``border`` cells wide
+    round the code), ``white`` (K,) its margin, ``ok`` (K,) whether it was read at all. The
+    border's median is black, the threshold halfway to the margin; ``good``: the margin 0.15
+    lighter than black at least and 0.85 of the border's cells below the threshold, ``bits``
+    (K, (n - 2 border)^2) then the code's cells above it (row by row); ``rimmed``: the margin
+    ``rim_contrast`` lighter, ``rim_to_refine`` of the border below and a code's cell above
+    (a black square's cells are all dark)."""
+    K = cell.shape[0]
+    nb = n - 2 * border
+    n_rim = n * n - nb * nb
+    rim = np.empty(n_rim)
+    work = np.empty(n_rim)
+    for k in range(K):
+        j = 0
+        for y in range(n):
+            for x in range(n):
+                if y < border or y >= n - border or x < border or x >= n - border:
+                    rim[j] = cell[k, y * n + x]
+                    j += 1
+        black = _median(rim, work)
+        t = 0.5 * (white[k] + black)
+        dark = 0
+        for j in range(n_rim):
+            dark += rim[j] < t
+        frac = dark / n_rim
+        lift = white[k] - black
+        contrast = ok[k] and np.isfinite(white[k]) and lift > 0.15
+        lit = False
+        i = 0
+        for y in range(border, n - border):
+            for x in range(border, n - border):
+                b = cell[k, y * n + x] > t
+                bits[k, i] = b
+                lit |= b
+                i += 1
+        good[k] = contrast and frac >= 0.85
+        rimmed[k] = contrast and lift > rim_contrast and frac >= rim_to_refine and lit
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def rim_verdicts(vals: np.ndarray, white: np.ndarray, ok: np.ndarray, contrast: float, dark_share: float,
+                 out: np.ndarray) -> None:  # pragma: no cover - numba
+    """Whether each quad's border reads as a marker's (see :func:`camkit.target._markers._rims`):
+    ``vals`` (K, R) one sample a border cell, ``white`` (K,) the margin's; the border's median
+    ``contrast`` darker than the margin at least, and ``dark_share`` of its samples below the
+    threshold halfway between."""
+    K, R = vals.shape
+    work = np.empty(R)
+    for k in range(K):
+        black = _median(vals[k], work)
+        t = 0.5 * (white[k] + black)
+        dark = 0
+        for j in range(R):
+            dark += vals[k, j] < t
+        out[k] = ok[k] and white[k] - black > contrast and dark / R >= dark_share
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def _popcount(v: np.uint64) -> int:  # pragma: no cover - numba
     """The set bits of ``v`` (the SWAR count: pairs, nibbles, then bytes summed by a multiply)."""

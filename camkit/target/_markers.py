@@ -247,22 +247,15 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     else:
         cell, white = _read_cells(g, Hs, pts, n * n, m)
         cell = cell.reshape(K, n, n)
-    inner = np.zeros((n, n), dtype=bool)
-    inner[border:-border, border:-border] = True
-    rim = cell[:, ~inner]
-    black = np.median(rim, axis=1)
-    t = 0.5 * (white + black)
-    dark = np.mean(rim < t[:, None], axis=1)
-    contrast = ok & np.isfinite(white) & (white - black > 0.15)
-    good = contrast & (dark >= 0.85)
-    # (A black square, its cells all dark, is not a marker a pixel off.)
-    rimmed = (contrast & (white - black > rim_contrast) & (dark >= _RIM_TO_REFINE)
-              & (cell[:, inner] > t[:, None]).any(axis=1))
+    nb = n - 2 * border
+    good, rimmed = np.empty(K, dtype=bool), np.empty(K, dtype=bool)
+    bits = np.empty((K, nb * nb), dtype=np.uint8)
+    markers_kernels.cell_verdicts(np.ascontiguousarray(cell.reshape(K, n * n)), np.ascontiguousarray(white), ok, n,
+                                  border, float(rim_contrast), _RIM_TO_REFINE, good, rimmed, bits)
     ids = np.full(K, -1, dtype=np.int64)
     turns = np.zeros(K, dtype=np.int64)
     if good.any():
-        bits = (cell[good][:, border:-border, border:-border] > t[good][:, None, None]).astype(np.uint8)
-        ids[good], turns[good], _ = d.identify_many(bits)
+        ids[good], turns[good], _ = d.identify_many(bits[good].reshape(-1, nb, nb))
     return ids, turns, rimmed
 
 
@@ -671,10 +664,9 @@ def _rims(g: np.ndarray, quads: np.ndarray, n: int, border: int, contrast: float
     pts = _rim_points(n, border)
     r = len(pts) - 4
     vals, white = _read_cells(g, Hs, pts, r, 1)  # one sample a rim cell, and the margin's median
-    black = np.median(vals, axis=1)
-    t = 0.5 * (white + black)
-    with np.errstate(invalid="ignore"):
-        return ok & (white - black > contrast) & (np.mean(vals < t[:, None], axis=1) >= _RIM_TO_REFINE)
+    out = np.empty(len(quads), dtype=bool)
+    markers_kernels.rim_verdicts(vals, white, ok, float(contrast), _RIM_TO_REFINE, out)
+    return out
 
 
 def _read_refined(g: np.ndarray, quads: np.ndarray, codes: np.ndarray, turns: np.ndarray, rimmed: np.ndarray,

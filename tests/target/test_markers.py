@@ -591,6 +591,51 @@ def test_the_masks_made_together_and_their_runs_are_each_masks_own():
         assert n_runs > 2000
 
 
+def test_the_cells_verdicts_are_their_medians_and_thresholds():
+    """cell_verdicts and rim_verdicts against their definition in NumPy: the border's median is
+    black (NaN where a cell is), the threshold halfway to the margin; a marker's border 0.85
+    dark and 0.15 darker than the margin, the code's bits above the threshold; rimmed where
+    the border is 0.6 dark, ``rim_contrast`` darker, and a code cell lit. Cells near their
+    threshold, borders of one and two cells, rows not read (``ok`` False) and NaN margins."""
+    from camkit._kernels import markers as mk
+
+    rng = np.random.default_rng(31)
+    for n, border in ((7, 1), (10, 2)):
+        K = 400
+        inner = np.zeros((n, n), dtype=bool)
+        inner[border:-border, border:-border] = True
+        cell = rng.uniform(0.6, 1.0, (K, n, n))
+        dark_rim = rng.random((K, n, n)) < rng.uniform(0.5, 1.0, (K, 1, 1))
+        cell[dark_rim & ~inner] = rng.uniform(0.0, 0.4, int((dark_rim & ~inner).sum()))
+        cell[: K // 4, inner] = 0.05  # black squares: no code cell lit
+        white = rng.uniform(0.3, 1.0, K)
+        white[::37] = np.nan
+        cell[5, 0, 0] = np.nan
+        ok = rng.random(K) > 0.1
+        rim = cell[:, ~inner]
+        black = np.median(rim, axis=1)
+        t = 0.5 * (white + black)
+        with np.errstate(invalid="ignore"):
+            dark = np.mean(rim < t[:, None], axis=1)
+            contrast = ok & np.isfinite(white) & (white - black > 0.15)
+            want_good = contrast & (dark >= 0.85)
+            want_rimmed = contrast & (white - black > 0.3) & (dark >= 0.6) & (cell[:, inner] > t[:, None]).any(axis=1)
+            want_bits = (cell[:, inner] > t[:, None]).astype(np.uint8)
+        good, rimmed = np.empty(K, dtype=bool), np.empty(K, dtype=bool)
+        bits = np.empty((K, (n - 2 * border) ** 2), dtype=np.uint8)
+        mk.cell_verdicts(cell.reshape(K, n * n), white, ok, n, border, 0.3, 0.6, good, rimmed, bits)
+        np.testing.assert_array_equal(good, want_good)
+        np.testing.assert_array_equal(rimmed, want_rimmed)
+        np.testing.assert_array_equal(bits[good], want_bits[good])
+        assert 50 < good.sum() < K - 50 and 50 < rimmed.sum() and not good[5]
+        vals = np.ascontiguousarray(rim)
+        out = np.empty(K, dtype=bool)
+        mk.rim_verdicts(vals, white, ok, 0.2, 0.6, out)
+        with np.errstate(invalid="ignore"):
+            np.testing.assert_array_equal(out, ok & (white - black > 0.2) & (dark >= 0.6))
+        assert 50 < out.sum() < K - 50
+
+
 def test_the_buffers_kept_per_thread_stay_under_their_bound():
     """find_quads' work arrays (and a detection's dense grey) are kept per thread up to
     SCRATCH_MAX_BYTES in all: asked for more (a 12 MP image read at full resolution), they are
