@@ -95,7 +95,7 @@ def _dark_row(g: np.ndarray, ii: np.ndarray, y: int, r: int, c: float, oy: np.nd
 def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) -> None:  # pragma: no cover
     """``out[y, x] = g[y, x] < mean of g over the (2r+1)^2 window (clipped at the borders) - c``,
     from the integral image ``ii`` (:func:`integral`), row by row (:func:`_dark_row`). Serial:
-    :func:`dark_masks` makes several at once."""
+    the masks are made on threads side by side."""
     for y in range(g.shape[0]):
         _dark_row(g, ii, y, r, c, out[y])
 
@@ -135,87 +135,6 @@ def _write_runs(row: np.ndarray, a0: np.ndarray, a1: np.ndarray) -> int:  # prag
     return n
 
 
-def _make_dark_masks(PARALLEL: int):
-    """:func:`dark_masks`' kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
-
-    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
-    def dark_masks(g: np.ndarray, ii: np.ndarray, radii: np.ndarray, offsets: np.ndarray, out: np.ndarray,
-                   counts: np.ndarray) -> None:  # pragma: no cover - numba
-        """``out[m]`` (H, W): :func:`dark_mask` of window half side ``radii[m]``, ``offsets[m]``
-        below its mean, and ``counts[m, y]`` its row ``y``'s runs of set pixels; the masks'
-        rows shared out together."""
-        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
-            pass
-        H = g.shape[0]
-        M = radii.shape[0]
-        for t in prange(M * H):
-            m = t // H
-            y = t - m * H
-            _dark_row(g, ii, y, radii[m], offsets[m], out[m, y])
-            counts[m, y] = _count_runs(out[m, y].view(np.uint8))
-
-    return dark_masks
-
-
-_dark_masks_serial, _dark_masks_parallel = _make_dark_masks(0), _make_dark_masks(1)
-
-
-def dark_masks(g: np.ndarray, ii: np.ndarray, radii: np.ndarray, offsets: np.ndarray, out: np.ndarray,
-               counts: np.ndarray) -> None:
-    """Several dark masks of one image at once (kernel ``_make_dark_masks``), serial where small
-    (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`; the work counted in pixels and masks)."""
-    work = 1.2 * out.size
-    (_dark_masks_parallel if work >= PARALLEL_MIN_NS else _dark_masks_serial)(g, ii, radii, offsets, out, counts)
-
-
-def _make_mask_runs(PARALLEL: int):
-    """:func:`mask_runs`' kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
-
-    @njit(cache=True, nogil=True, parallel=PARALLEL == 1, error_model="numpy")
-    def mask_runs(masks: np.ndarray, start: np.ndarray, ry: np.ndarray, r0: np.ndarray,
-                  r1: np.ndarray) -> None:  # pragma: no cover - numba
-        """The runs of set pixels of each mask row ``t`` (masks (M, H, W) as M * H rows) into
-        ``ry``, ``r0``, ``r1`` from ``start[t]`` (their counts' running sum), in blocks of
-        rows, each row through its block's buffers (:func:`_write_runs` writes past the row's
-        runs)."""
-        if PARALLEL:  # (the closure's int keys the cache: the twins apart)
-            pass
-        M, H, W = masks.shape
-        rows = masks.reshape(M * H, W).view(np.uint8)
-        n_blocks = (M * H + 31) // 32
-        for blk in prange(n_blocks):
-            b0 = np.empty(W + 1, dtype=np.int32)
-            b1 = np.empty(W // 2 + 1, dtype=np.int32)
-            for t in range(32 * blk, min(32 * blk + 32, M * H)):
-                n = _write_runs(rows[t], b0, b1)
-                k = start[t]
-                y = t % H
-                for i in range(n):
-                    ry[k + i] = y
-                    r0[k + i] = b0[i]
-                    r1[k + i] = b1[i]
-
-    return mask_runs
-
-
-_mask_runs_serial, _mask_runs_parallel = _make_mask_runs(0), _make_mask_runs(1)
-
-
-def mask_runs(masks: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """The runs of set pixels of each of ``masks`` (M, H, W), ``counts`` (M, H) per row
-    (:func:`dark_masks`): ``start`` (M + 1,), mask ``m``'s runs at ``start[m]:start[m + 1]``
-    of ``ry``, ``r0``, ``r1`` (int32: the run's row, first and last column), row by row, left
-    to right. Serial where small (:data:`~camkit._kernels.detect.PARALLEL_MIN_NS`)."""
-    M, H, _ = masks.shape
-    row_start = np.zeros(M * H + 1, dtype=np.int64)
-    np.cumsum(counts.reshape(-1), out=row_start[1:])
-    n = int(row_start[-1])
-    ry, r0, r1 = (np.empty(n, dtype=np.int32) for _ in range(3))
-    work = 0.6 * masks.size
-    (_mask_runs_parallel if work >= PARALLEL_MIN_NS else _mask_runs_serial)(masks, row_start, ry, r0, r1)
-    return row_start[::H], ry, r0, r1
-
-
 @njit(cache=True, nogil=True, error_model="numpy")
 def cross_filter(src: np.ndarray, dilate: bool, out: np.ndarray) -> None:  # pragma: no cover - numba
     """Erosion (``dilate`` False: a pixel stays set where it and its four neighbours are set)
@@ -241,7 +160,7 @@ def _find(parent: np.ndarray, a: int) -> int:  # pragma: no cover - numba
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
+def mask_runs(mask: np.ndarray) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:  # pragma: no cover - numba
     """The runs of set pixels of ``mask``, row by row, left to right: (count, y, x0, x1), int32;
     counted first (:func:`_count_runs`), then written (:func:`_write_runs`)."""
     H, W = mask.shape
@@ -283,14 +202,14 @@ def region_quads(mask: np.ndarray, min_area: int, max_area: int,
     for those. The area of a region without a quad (left out, or all on one side of ab) is
     made negative. Only the regions of the right area and box have their runs gathered (most
     regions of a threshold's mask are specks)."""
-    nr, ry, r0, r1 = _runs(mask)
+    nr, ry, r0, r1 = mask_runs(mask)
     return _run_regions(nr, ry, r0, r1, min_area, max_area, min_side)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _run_regions(nr: int, ry: np.ndarray, r0: np.ndarray, r1: np.ndarray, min_area: int, max_area: int,
                  min_side: int) -> tuple[np.ndarray, np.ndarray]:  # pragma: no cover - numba
-    """:func:`region_quads` from the mask's ``nr`` runs (:func:`_runs`)."""
+    """:func:`region_quads` from the mask's ``nr`` runs (:func:`mask_runs`)."""
     parent = np.arange(nr).astype(np.int32)
     # Join each run to the runs of the row above that it overlaps (4-connected: a shared column).
     # A root is its region's first run (the lower index wins), so parent[k] <= k throughout; the
@@ -431,7 +350,7 @@ def mask_quads(mask: np.ndarray, min_area: int, max_area: int, min_side: int) ->
 @njit(cache=True, nogil=True, error_model="numpy")
 def runs_quads(ry: np.ndarray, r0: np.ndarray, r1: np.ndarray, min_area: int, max_area: int,
                min_side: int) -> np.ndarray:  # pragma: no cover - numba
-    """:func:`mask_quads` from a mask's runs (:func:`mask_runs`)."""
+    """:func:`mask_quads` from a mask's runs (:func:`mask_runs`; ``ry`` as long as the runs)."""
     stats, quads = _run_regions(ry.shape[0], ry, r0, r1, min_area, max_area, min_side)
     return _kept_quads(stats, quads)
 

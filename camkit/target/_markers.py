@@ -7,8 +7,10 @@ from __future__ import annotations
 import functools
 import itertools
 import os
+import threading
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor, wait
+from typing import Any
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -259,34 +261,57 @@ def read_markers_rims(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, bord
     return ids, turns, rimmed
 
 
-def _mask_quads(dark: np.ndarray, opening: bool, cuts: tuple[np.ndarray, np.ndarray] | None,
-                min_side: int) -> np.ndarray:
-    """The quads of the dark regions of one mask (see :func:`find_quads`), (K, 4, 2) clockwise:
-    those whose four corners span most of the region's area (a triangle or a blob's do not;
-    kernel :func:`camkit._kernels.markers.mask_quads`), the mask opened and cut first. Serial
-    kernels (``nogil``) wholly, on this thread's buffer: the masks are labelled on threads side
-    by side."""
-    H, W = dark.shape
+def _dark_runs(g: np.ndarray, ii: np.ndarray, r: int, c: float, opening: bool,
+               cuts: tuple[np.ndarray, np.ndarray] | None) -> tuple[int, np.ndarray, np.ndarray, np.ndarray]:
+    """The runs of set pixels (kernel :func:`camkit._kernels.markers.mask_runs`) of one dark mask
+    of :func:`find_quads` (window half side ``r``, ``c`` below its mean; opened and cut where
+    asked). Serial kernels (``nogil``) wholly, on this thread's buffers: the masks are made on
+    threads side by side."""
+    dark = scratch("mask", g.shape, np.bool_)
+    markers_kernels.dark_mask(g, ii, r, c, dark)
     if opening:
-        opened = scratch("opened", (H, W), np.bool_)
+        opened = scratch("opened", dark.shape, np.bool_)
         markers_kernels.cross_filter(dark, False, opened)
         markers_kernels.cross_filter(opened, True, dark)
     if cuts is not None:
         dark[cuts] = False
-    return markers_kernels.mask_quads(dark, (min_side * min_side) // 2, (H * W) // 4, min_side)
+    return markers_kernels.mask_runs(dark)
 
 
-def _side_by_side(fn: Callable[[int], np.ndarray], n: int, helpers: int = 1) -> list[np.ndarray]:
+def _side_by_side(fn: Callable[[int], Any], n: int, helpers: int = 1,
+                  then: Callable[[int, Any], np.ndarray] | None = None) -> list[np.ndarray]:
     """``[fn(0), ..., fn(n - 1)]``, the calls shared out between this thread and up to
-    ``helpers`` of the pool's as each comes free (``fn`` runs ``nogil`` kernels)."""
+    ``helpers`` of the pool's as each comes free (``fn`` runs ``nogil`` kernels). With
+    ``then``, ``[then(i, fn(i)) for i ...]`` in two stages: every ``fn`` call is taken before
+    any ``then`` call, and ``then(i, .)`` waits for ``fn(i)`` where another thread has it (so
+    that one thread makes a mask's runs while another labels the runs of the mask before,
+    and no thread waits for the last mask's whole work). The first error comes back after
+    every call taken has ended."""
     out: list[np.ndarray] = [np.empty(0)] * n
+    first: list[Any] = [None] * n
+    done = [threading.Event() for _ in range(n)] if then is not None else []
+    failed: set[int] = set()
+    n_tasks = 2 * n if then is not None else n
     nxt = itertools.count()  # (next() on it is atomic under the GIL)
 
     def work() -> None:
-        while (i := next(nxt)) < n:
-            out[i] = fn(i)
+        while (t := next(nxt)) < n_tasks:
+            if then is None:
+                out[t] = fn(t)
+            elif t < n:
+                try:
+                    first[t] = fn(t)
+                except BaseException:
+                    failed.add(t)
+                    raise
+                finally:
+                    done[t].set()
+            else:
+                done[t - n].wait()
+                if t - n not in failed:  # (its error comes back from the thread that met it)
+                    out[t - n] = then(t - n, first[t - n])
 
-    running = [_pool().submit(work) for _ in range(min(n - 1, helpers, _POOL_THREADS))]
+    running = [_pool().submit(work) for _ in range(min(n_tasks - 1, helpers, _POOL_THREADS))]
     try:
         work()
     finally:  # (the helpers read the caller's arrays: none outlives the call)
@@ -333,7 +358,7 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     touch at a corner (an AprilGrid's tag and its corner squares) and keeps a border two cells
     wide at two pixels a cell, and each window is thresholded twice: 0.03 and 0.15 below the
     local mean (the stricter one parts junctions that blur joins). Each mask is made and its
-    regions labelled on one thread, the masks side by side (:func:`_side_by_side`). ``radii``: the
+    regions labelled on threads, the masks side by side (:func:`_side_by_side`). ``radii``: the
     windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
     ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
     H, W = g.shape
@@ -342,22 +367,14 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     offsets = (0.03, 0.15) if opening else (0.03,)
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
-    r_of = np.array([r for r in radii for _ in offsets], dtype=np.int64)
-    c_of = np.array([c for _ in radii for c in offsets])
-    M = len(r_of)
-    # The masks all at once, their rows shared out (and each row's runs counted).
-    dark = scratch("masks", (M, H, W), np.bool_)
-    counts = scratch("run_counts", (M, H), np.int64)
-    markers_kernels.dark_masks(g, ii, r_of, c_of, dark, counts)
-    helpers = _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0
-    if opening or cuts is not None:
-        found = _side_by_side(lambda i: _mask_quads(dark[i], opening, cuts, min_side), M, helpers)
-    else:
-        # Their runs, rows shared out; then each mask's regions labelled on its own thread.
-        start, ry, r0, r1 = markers_kernels.mask_runs(dark, counts)
-        found = _side_by_side(lambda i: markers_kernels.runs_quads(
-            ry[start[i]:start[i + 1]], r0[start[i]:start[i + 1]], r1[start[i]:start[i + 1]],
-            (min_side * min_side) // 2, (H * W) // 4, min_side), M, helpers)
+    masks = [(r, c) for r in radii for c in offsets]
+    # Each mask made and its runs found, then its regions labelled: the two stages of every
+    # mask shared out, the masks made first (_side_by_side).
+    found = _side_by_side(lambda i: _dark_runs(g, ii, *masks[i], opening, cuts), len(masks),
+                          _POOL_THREADS if H * W >= _SIDE_BY_SIDE_MIN_PX else 0,
+                          then=lambda i, runs: markers_kernels.runs_quads(runs[1], runs[2], runs[3],
+                                                                          (min_side * min_side) // 2, (H * W) // 4,
+                                                                          min_side))
     out = [q for q in found if len(q)]
     if not out:
         return np.zeros((0, 4, 2))

@@ -460,6 +460,42 @@ def test_the_masks_are_shared_out_between_the_callers_thread_and_the_pools():
         mk._side_by_side(bad, 6)
     assert sorted(ended) == [0, 1, 3, 4, 5]
 
+    # In two stages: then(i, fn(i)) in the calls' order; every first stage taken before any
+    # second, a second stage that waits for its first on another thread; an error in either
+    # stage comes back.
+    log: list[tuple[str, int]] = []
+    took_rest = threading.Event()
+
+    def first(i: int) -> int:
+        log.append(("first", i))
+        if i == 2:
+            took_rest.set()
+        if i == 0:  # (the other thread takes the other first stages, then waits for this one)
+            assert took_rest.wait(timeout=30), "no second thread took a first stage"
+        return 10 * i
+
+    def second(i: int, f: int) -> np.ndarray:
+        log.append(("then", i))
+        return np.full(2, f + i)
+
+    out = mk._side_by_side(first, 3, then=second)
+    assert [int(o[0]) for o in out] == [0, 11, 22]
+    assert {e for e in log[:3]} == {("first", 0), ("first", 1), ("first", 2)}
+    assert sorted(log[3:]) == [("then", 0), ("then", 1), ("then", 2)]
+    for where in ("first", "then"):
+        def fail_first(i: int, where: str = where) -> int:
+            if where == "first" and i == 1:
+                raise ValueError("stage first")
+            return i
+
+        def fail_then(i: int, f: int, where: str = where) -> np.ndarray:
+            if where == "then" and i == 2:
+                raise ValueError("stage then")
+            return np.zeros(1)
+
+        with pytest.raises(ValueError, match=f"stage {where}"):
+            mk._side_by_side(fail_first, 4, then=fail_then)
+
 
 def test_the_detection_kernels_serial_twins_give_the_parallel_ones_results_bit_for_bit():
     """Saddle fits, patch blurs, homographies and cell readings run serially where their work is
@@ -545,50 +581,29 @@ def test_the_dark_mask_is_the_pixels_under_their_windows_clipped_mean():
             np.testing.assert_array_equal(out[sure], (g < mean - 0.05)[sure])
 
 
-def test_the_masks_made_together_and_their_runs_are_each_masks_own():
-    """dark_masks (several windows and offsets at once, rows shared out: both twins) gives each
-    mask dark_mask gives alone and each row's count of runs; mask_runs (both twins) the runs
-    _runs gives for each mask, and runs_quads on them the quads mask_quads gives; on noise
-    (many runs, rows that start or end set) and on a mask with rows wholly set or clear."""
+def test_a_masks_runs_are_its_rows_changes_and_their_quads_the_masks():
+    """mask_runs against the runs NumPy finds from each row's changes (rows that start or end
+    set, rows wholly set or clear, one column, noise's many short runs), and runs_quads on
+    them against mask_quads on the mask."""
     from camkit._kernels import markers as mk
 
     rng = np.random.default_rng(12)
-    g = rng.random((83, 97))
-    g[10:14] = 0.0  # rows wholly dark under a wide window
-    g[20:22] = 1.0
-    H, W = g.shape
-    ii = np.empty((H + 1, W + 1))
-    mk.integral(g, ii)
-    radii = np.array([1, 4, 30, 200])
-    offsets = np.array([0.03, 0.15, 0.03, -1.5])  # (the last: every pixel set)
-    for masks_fn, runs_fn in ((mk._dark_masks_serial, mk._mask_runs_serial),
-                              (mk._dark_masks_parallel, mk._mask_runs_parallel)):
-        masks = np.empty((4, H, W), dtype=bool)
-        counts = np.empty((4, H), dtype=np.int64)
-        masks_fn(g, ii, radii, offsets, masks, counts)
-        row_start = np.zeros(4 * H + 1, dtype=np.int64)
-        np.cumsum(counts.ravel(), out=row_start[1:])
-        ry, r0, r1 = (np.full(row_start[-1], -7, dtype=np.int32) for _ in range(3))
-        runs_fn(masks, row_start, ry, r0, r1)
-        start = row_start[::H]
-        n_runs = 0
-        for m in range(4):
-            one = np.empty((H, W), dtype=bool)
-            mk.dark_mask(g, ii, int(radii[m]), float(offsets[m]), one)
-            np.testing.assert_array_equal(masks[m], one)
-            n, want_y, want_0, want_1 = mk._runs(one)
-            d = np.diff(np.pad(one, ((0, 0), (1, 1))).astype(np.int8), axis=1)
-            np.testing.assert_array_equal(counts[m], (d == 1).sum(axis=1))
-            a, b = start[m], start[m + 1]
-            assert b - a == n
-            np.testing.assert_array_equal(ry[a:b], want_y)
-            np.testing.assert_array_equal(r0[a:b], want_0)
-            np.testing.assert_array_equal(r1[a:b], want_1)
-            np.testing.assert_array_equal(mk.runs_quads(ry[a:b], r0[a:b], r1[a:b], 4, H * W // 4, 2),
-                                          mk.mask_quads(one, 4, H * W // 4, 2))
-            n_runs += n
-        assert masks[2, 10:14].all() and not masks[2, 20:22].any() and masks[3].all()
-        assert n_runs > 2000
+    n_runs = 0
+    for H, W, p in ((83, 97, 0.5), (40, 1, 0.5), (30, 64, 0.9), (60, 50, 0.2)):
+        m = rng.random((H, W)) < p
+        m[3] = True
+        m[4] = False
+        d = np.diff(np.pad(m, ((0, 0), (1, 1))).astype(np.int8), axis=1)
+        ys, starts = np.nonzero(d == 1)
+        _, ends = np.nonzero(d == -1)
+        n, ry, r0, r1 = mk.mask_runs(m)
+        assert n == len(ry) == len(starts)
+        np.testing.assert_array_equal(ry, ys)
+        np.testing.assert_array_equal(r0, starts)
+        np.testing.assert_array_equal(r1, ends - 1)
+        np.testing.assert_array_equal(mk.runs_quads(ry, r0, r1, 4, H * W // 4, 2), mk.mask_quads(m, 4, H * W // 4, 2))
+        n_runs += n
+    assert n_runs > 2000
 
 
 def test_the_cells_verdicts_are_their_medians_and_thresholds():
