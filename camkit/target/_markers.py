@@ -351,7 +351,7 @@ def _pool() -> ThreadPoolExecutor:
 
 
 def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple[int, ...] | None = None,
-               cuts: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+               cuts: tuple[np.ndarray, np.ndarray] | None = None, integral: np.ndarray | None = None) -> np.ndarray:
     """Quad candidates (K, 4, 2), clockwise in the image, from the dark regions of an adaptive
     threshold at three window sizes (a quad found again at another window kept once). With
     ``opening``, the dark mask is opened by the 3 x 3 cross first, which parts regions that
@@ -360,10 +360,14 @@ def find_quads(g: np.ndarray, min_side: int, opening: bool = False, radii: tuple
     local mean (the stricter one parts junctions that blur joins). Each mask is made and its
     regions labelled on threads, the masks side by side (:func:`_side_by_side`). ``radii``: the
     windows' half sides, where not a fraction of the image's size (80th, 30th, 12th).
-    ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`)."""
+    ``cuts``: pixels (rows, columns) cleared from every dark mask (:func:`_junction_cuts`).
+    ``integral``: ``g``'s integral image (:func:`camkit._kernels.markers.integral`), where
+    already made."""
     H, W = g.shape
-    ii = scratch("integral", (H + 1, W + 1), np.float64)
-    markers_kernels.integral(g, ii)
+    ii = integral
+    if ii is None:
+        ii = scratch("integral", (H + 1, W + 1), np.float64)
+        markers_kernels.integral(g, ii)
     offsets = (0.03, 0.15) if opening else (0.03,)
     if radii is None:
         radii = tuple(sorted({max(3, min(H, W) // k) for k in (80, 30, 12)}))
@@ -563,8 +567,10 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
     found: dict[int, list[np.ndarray]] = {}
     for k in reversed(range(len(levels))):
         g, f = levels.level(k), 2 ** k
-        if isinstance(g, RawGrey):
-            g = g.dense()
+        ii = None
+        if isinstance(g, RawGrey):  # (its integral image for find_quads in the same pass)
+            ii = scratch("integral", (g.shape[0] + 1, g.shape[1] + 1), np.float64)
+            g = g.dense(integral=ii)
         # Two pixels a cell at least where a finer level is left to read; on the full image,
         # down to :data:`MIN_CELL_PX` (refined quads read there: corpus view 883, markers of
         # 13 px, cells of 1.6) where the image's noise leaves such cells readable: their
@@ -576,7 +582,7 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
         contrast = max(0.15, 3.0 * noise / f)
         small_ok = f == 1 and contrast <= 0.5
         quads = find_quads(g, int(np.ceil(MIN_CELL_PX * n_cells)) if small_ok else 2 * n_cells, opening=border >= 2,
-                           cuts=_junction_cuts(g) if corner_squares > 0 else None)
+                           cuts=_junction_cuts(g) if corner_squares > 0 else None, integral=ii)
         if small_ok and len(quads):
             # The small quads (noise gives many) are read only where their border is a
             # marker's.

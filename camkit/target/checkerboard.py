@@ -11,6 +11,7 @@ import numpy as np
 from camkit._alloc import new_image, scratch
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
+from camkit._kernels import markers as markers_kernels
 from camkit._validate import as_finite_float, as_image, as_positive_float, as_positive_int
 from camkit.errors import ParameterError, ShapeError
 from camkit.target._homography import fit_homographies
@@ -148,13 +149,22 @@ class RawGrey:
         self.shape: tuple[int, int] = raw.shape
         self._dense: np.ndarray | None = None
 
-    def dense(self) -> np.ndarray:
+    def dense(self, integral: np.ndarray | None = None) -> np.ndarray:
         """The float64 grey image (made once, in this thread's work buffer ``"dense"``
-        (:func:`camkit._alloc.scratch`): a detection's own, on its thread; one grey at a time)."""
+        (:func:`camkit._alloc.scratch`): a detection's own, on its thread; one grey at a time).
+        ``integral`` (H + 1, W + 1): filled with the grey's integral image too (as
+        :func:`camkit._kernels.markers.integral` makes it; in the same pass where the grey is
+        made here)."""
         if self._dense is None:
             g = scratch("dense", self.shape, np.float64, touched=True)
+            if integral is not None:
+                detect_kernels.grey_integral(self.raw, -self.b / self.a, self.a, g, integral)
+                self._dense = g
+                return g
             detect_kernels.grey_mean(self.raw[:, :, None], 1.0, -self.b / self.a, self.a, g)
             self._dense = g
+        if integral is not None:
+            markers_kernels.integral(self._dense, integral)
         return self._dense
 
 

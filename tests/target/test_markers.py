@@ -651,6 +651,37 @@ def test_the_cells_verdicts_are_their_medians_and_thresholds():
         assert 50 < out.sum() < K - 50
 
 
+def test_the_grey_and_its_integral_made_in_one_pass_are_those_made_apart():
+    """grey_integral (the stretched grey of an 8-bit image and its integral image in one pass)
+    gives grey_mean's grey and integral's integral bit for bit, on heights that are and are
+    not a multiple of its four rows; and a RawGrey's dense grey asked for with its integral
+    (made in that pass, or from the grey made before) is the same."""
+    from camkit._kernels import detect as dk
+    from camkit._kernels import markers as mk
+    from camkit.target.checkerboard import _to_grey
+
+    rng = np.random.default_rng(14)
+    for H, W in ((37, 53), (40, 8), (3, 90), (1, 1)):
+        raw = rng.integers(0, 256, (H, W), dtype=np.uint8)
+        lo, inv = 13.7 / 255.0, 255.0 / 211.3
+        want_g, want_ii = np.empty((H, W)), np.empty((H + 1, W + 1))
+        dk.grey_mean(raw[:, :, None], 1.0, lo, inv, want_g)
+        mk.integral(want_g, want_ii)
+        g, ii = np.full((H, W), np.nan), np.full((H + 1, W + 1), np.nan)
+        dk.grey_integral(raw, lo, inv, g, ii)
+        np.testing.assert_array_equal(g, want_g)
+        np.testing.assert_array_equal(ii, want_ii)
+    raw = rng.integers(20, 230, (61, 75), dtype=np.uint8)
+    ii1, ii2 = np.empty((62, 76)), np.empty((62, 76))
+    g1 = _to_grey(raw, lazy=True).dense(integral=ii1).copy()  # in one pass
+    lazy = _to_grey(raw, lazy=True)
+    g2 = lazy.dense().copy()
+    lazy.dense(integral=ii2)  # from the grey made before
+    np.testing.assert_array_equal(g1, g2)
+    np.testing.assert_array_equal(ii1, ii2)
+    np.testing.assert_allclose(g1, _to_grey(raw), rtol=0, atol=1e-12)  # (the eager grey: its own rounding)
+
+
 def test_the_buffers_kept_per_thread_stay_under_their_bound():
     """find_quads' work arrays (and a detection's dense grey) are kept per thread up to
     SCRATCH_MAX_BYTES in all: asked for more (a 12 MP image read at full resolution), they are
