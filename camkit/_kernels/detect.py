@@ -183,55 +183,6 @@ def grey_mean(img: np.ndarray, scale: float, lo: float, inv: float, out: np.ndar
             out[y, x] = (acc * f - lo) * inv
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def grey_integral(raw: np.ndarray, lo: float, inv: float, out: np.ndarray,
-                  ii: np.ndarray) -> None:  # pragma: no cover - numba
-    """:func:`grey_mean` of the one-channel ``raw`` (H, W) (scale 1) into ``out``, and in the same
-    pass ``ii`` (H + 1, W + 1) its integral image as
-    :func:`camkit._kernels.markers.integral` makes it (zeros on the first row and column, each
-    entry the one above plus the row's running sum; four rows side by side): the same values
-    bit for bit, the grey read once."""
-    H, W = raw.shape
-    ii[0, :] = 0.0
-    y = 0
-    while y + 4 <= H:
-        q0, q1, q2, q3 = raw[y], raw[y + 1], raw[y + 2], raw[y + 3]
-        g0, g1, g2, g3 = out[y], out[y + 1], out[y + 2], out[y + 3]
-        p, o0, o1, o2, o3 = ii[y], ii[y + 1], ii[y + 2], ii[y + 3], ii[y + 4]
-        o0[0] = o1[0] = o2[0] = o3[0] = 0.0
-        a0 = a1 = a2 = a3 = 0.0
-        for x in range(W):
-            v0 = ((0.0 + q0[x]) * 1.0 - lo) * inv
-            v1 = ((0.0 + q1[x]) * 1.0 - lo) * inv
-            v2 = ((0.0 + q2[x]) * 1.0 - lo) * inv
-            v3 = ((0.0 + q3[x]) * 1.0 - lo) * inv
-            g0[x] = v0
-            g1[x] = v1
-            g2[x] = v2
-            g3[x] = v3
-            a0 += v0
-            a1 += v1
-            a2 += v2
-            a3 += v3
-            s0 = p[x + 1] + a0
-            s1 = s0 + a1
-            s2 = s1 + a2
-            o0[x + 1] = s0
-            o1[x + 1] = s1
-            o2[x + 1] = s2
-            o3[x + 1] = s2 + a3
-        y += 4
-    while y < H:
-        ii[y + 1, 0] = 0.0
-        acc = 0.0
-        for x in range(W):
-            v = ((0.0 + raw[y, x]) * 1.0 - lo) * inv
-            out[y, x] = v
-            acc += v
-            ii[y + 1, x + 1] = ii[y, x + 1] + acc
-        y += 1
-
-
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def half_mean(img: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
     """``out[y, x]`` = the mean of ``img``'s 2x2 block at (2x, 2y), summed in the order

@@ -26,24 +26,38 @@ _EDGE_OFF_LINE_MOST = 3
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
-    """``ii`` (H + 1, W + 1): the integral image of ``g`` (zeros on the first row and column),
-    each entry the one above plus the row's running sum. Four rows at a time: their running
-    sums are four chains of additions side by side, not one that waits on each add (the same
-    additions in the same order)."""
-    H, W = g.shape
+def _running_sums(src: np.ndarray, stretch: bool, lo: float, inv: float, grey: np.ndarray,
+                  ii: np.ndarray) -> None:  # pragma: no cover - numba
+    """``ii`` (H + 1, W + 1): the integral image of ``src`` (H, W) (zeros on the first row and
+    column), each entry the one above plus the row's running sum; with ``stretch``, of the
+    grey ``(src - lo) * inv`` (as :func:`camkit._kernels.detect.grey_mean` makes it from one
+    channel), written to ``grey`` on the way. Four rows at a time: their running sums are four
+    chains of additions side by side, not one that waits on each add (the same additions in
+    the same order)."""
+    H, W = src.shape
     ii[0, :] = 0.0
     y = 0
     while y + 4 <= H:
-        r0, r1, r2, r3 = g[y], g[y + 1], g[y + 2], g[y + 3]
+        r0, r1, r2, r3 = src[y], src[y + 1], src[y + 2], src[y + 3]
         p, o0, o1, o2, o3 = ii[y], ii[y + 1], ii[y + 2], ii[y + 3], ii[y + 4]
         o0[0] = o1[0] = o2[0] = o3[0] = 0.0
         a0 = a1 = a2 = a3 = 0.0
         for x in range(W):
-            a0 += r0[x]
-            a1 += r1[x]
-            a2 += r2[x]
-            a3 += r3[x]
+            if stretch:
+                e0 = ((0.0 + r0[x]) * 1.0 - lo) * inv
+                e1 = ((0.0 + r1[x]) * 1.0 - lo) * inv
+                e2 = ((0.0 + r2[x]) * 1.0 - lo) * inv
+                e3 = ((0.0 + r3[x]) * 1.0 - lo) * inv
+                grey[y, x] = e0
+                grey[y + 1, x] = e1
+                grey[y + 2, x] = e2
+                grey[y + 3, x] = e3
+            else:
+                e0, e1, e2, e3 = float(r0[x]), float(r1[x]), float(r2[x]), float(r3[x])
+            a0 += e0
+            a1 += e1
+            a2 += e2
+            a3 += e3
             v0 = p[x + 1] + a0
             v1 = v0 + a1
             v2 = v1 + a2
@@ -56,9 +70,28 @@ def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
         ii[y + 1, 0] = 0.0
         acc = 0.0
         for x in range(W):
-            acc += g[y, x]
+            e = float(src[y, x])
+            if stretch:
+                e = ((0.0 + src[y, x]) * 1.0 - lo) * inv
+                grey[y, x] = e
+            acc += e
             ii[y + 1, x + 1] = ii[y, x + 1] + acc
         y += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def integral(g: np.ndarray, ii: np.ndarray) -> None:  # pragma: no cover - numba
+    """``ii`` (H + 1, W + 1): the integral image of ``g`` (:func:`_running_sums`)."""
+    _running_sums(g, False, 0.0, 1.0, g, ii)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def grey_integral(raw: np.ndarray, lo: float, inv: float, out: np.ndarray,
+                  ii: np.ndarray) -> None:  # pragma: no cover - numba
+    """:func:`camkit._kernels.detect.grey_mean` of the one-channel ``raw`` (H, W) (scale 1)
+    into ``out``, and in the same pass ``ii`` its integral image as :func:`integral` makes it:
+    the same values bit for bit, the grey read once (:func:`_running_sums`)."""
+    _running_sums(raw, True, lo, inv, out, ii)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -102,8 +135,8 @@ def dark_mask(g: np.ndarray, ii: np.ndarray, r: int, c: float, out: np.ndarray) 
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def _count_runs(row: np.ndarray) -> int:  # pragma: no cover - numba
-    """The runs of set pixels of one mask row (uint8): a run starts where a set pixel follows a
-    clear one."""
+    """How many runs of set pixels one mask row (uint8) holds: a run starts where a set pixel
+    follows a clear one."""
     c = np.int64(row[0])
     for x in range(1, row.shape[0]):
         c += row[x] > row[x - 1]
@@ -924,6 +957,20 @@ def light_fit(s0: np.ndarray, s1: np.ndarray, v0: np.ndarray, v1: np.ndarray, d:
         fits[k] = math.sqrt(rr / dof) <= 3.0 * math.sqrt(vsum / P) + misfit_share * contrast
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _median(v: np.ndarray, work: np.ndarray) -> float:  # pragma: no cover - numba
+    """NumPy's median of ``v`` (NaN where any is NaN, as NumPy's; two middle values' mean),
+    sorted in ``work`` (as long as ``v``)."""
+    q = v.shape[0]
+    work[:] = v
+    work.sort()  # NaN last
+    if q == 0 or np.isnan(work[q - 1]):
+        return np.nan
+    if q % 2:
+        return work[q // 2]
+    return (work[q // 2 - 1] + work[q // 2]) / 2.0
+
+
 def _make_read_cells(PARALLEL: int):
     """:func:`read_cells`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
 
@@ -954,15 +1001,7 @@ def _make_read_cells(PARALLEL: int):
                     v[j] = np.nan
             for c in range(n_cells):
                 cell[k, c] = _pairwise_sum(v, c * m, m) / m
-            r = v[n_cells * m:].copy()
-            r.sort()  # NaN last, as NumPy's median (which returns NaN where any is)
-            q = r.shape[0]
-            if q == 0 or np.isnan(r[q - 1]):
-                white[k] = np.nan
-            elif q % 2:
-                white[k] = r[q // 2]
-            else:
-                white[k] = (r[q // 2 - 1] + r[q // 2]) / 2.0
+            white[k] = _median(v[n_cells * m:], np.empty(P - n_cells * m))
 
     return read_cells
 
@@ -977,18 +1016,6 @@ def read_cells(img: np.ndarray, a: float, b: float, Hs: np.ndarray, pts: np.ndar
     work = 9.0 * Hs.shape[0] * pts.shape[0]
     (_read_cells_parallel if work >= PARALLEL_MIN_NS else _read_cells_serial)(img, a, b, Hs, pts, n_cells, m, cell,
                                                                              white)
-@njit(cache=True, nogil=True, error_model="numpy")
-def _median(v: np.ndarray, work: np.ndarray) -> float:  # pragma: no cover - numba
-    """NumPy's median of ``v`` (NaN where any is NaN; two middle values' mean), sorted in
-    ``work`` (as long as ``v``)."""
-    q = v.shape[0]
-    work[:] = v
-    work.sort()  # NaN last
-    if q == 0 or np.isnan(work[q - 1]):
-        return np.nan
-    if q % 2:
-        return work[q // 2]
-    return (work[q // 2 - 1] + work[q // 2]) / 2.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -158,7 +158,7 @@ class RawGrey:
         if self._dense is None:
             g = scratch("dense", self.shape, np.float64, touched=True)
             if integral is not None:
-                detect_kernels.grey_integral(self.raw, -self.b / self.a, self.a, g, integral)
+                markers_kernels.grey_integral(self.raw, -self.b / self.a, self.a, g, integral)
                 self._dense = g
                 return g
             detect_kernels.grey_mean(self.raw[:, :, None], 1.0, -self.b / self.a, self.a, g)
