@@ -257,13 +257,15 @@ def _focal_share(cam: Any, report: Any, free_names: set[str], floor_px: float = 
     """The larger of fx's and fy's standard deviation over their value, from the fit ``cam`` (its
     solver's ``report``): the covariance scaled by the residuals' variance, their standard
     deviation taken as at least ``floor_px``; 0 where neither is free, NaN where the fit has no
-    covariance."""
+    covariance (a variance below zero, as a singular fit's rounding leaves, counts as none)."""
     r = np.asarray(report.residuals, dtype=np.float64)
     r = r[np.isfinite(r).all(axis=1)]
     sigma2 = max(float((r**2).sum() / max(r.size - report.n_params, 1)), floor_px**2)
     names = list(report.global_names)
-    shares = [np.sqrt(float(report.covariance[names.index(f), names.index(f)]) * sigma2) / abs(float(getattr(cam, f)))
-              for f in ("fx", "fy") if f in free_names and f in names]
+    free = [f for f in ("fx", "fy") if f in free_names and f in names]
+    var = [float(report.covariance[names.index(f), names.index(f)]) * sigma2 for f in free]
+    shares = [float(np.sqrt(v)) / abs(float(getattr(cam, f))) if v >= 0 else float("nan")
+              for v, f in zip(var, free, strict=True)]
     return max(shares, default=0.0) if np.isfinite(shares).all() else float("nan")
 
 

@@ -93,6 +93,28 @@ def test_missing_corners_are_nan_rows():
     assert res.converged and res.rms_px < 0.16  # 0.1 px per axis: 0.141 per corner
 
 
+def test_a_negative_variance_reads_as_no_covariance_without_a_warning():
+    """_focal_share: a fit whose covariance holds a variance below zero (a singular fit's
+    rounding) leaves the focal length undetermined (NaN), and says so without NumPy's
+    RuntimeWarning reaching the user; a positive one gives sigma over the value."""
+    import warnings
+    from types import SimpleNamespace
+
+    from camkit.calib.calibrate import _focal_share
+
+    cam = SimpleNamespace(fx=800.0, fy=-800.0)
+    for cov_fx, want in ((-1e-9, None), (4.0, 2.0 / 800.0), (np.nan, None)):
+        report = SimpleNamespace(residuals=np.ones((10, 2)), n_params=0, global_names=["fx", "fy"],
+                                 covariance=np.diag([cov_fx, 1.0]))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            got = _focal_share(cam, report, {"fx", "fy"})
+        if want is None:
+            assert np.isnan(got)
+        else:
+            assert got == pytest.approx(want)
+
+
 def test_errors_name_the_cause():
     _, imgs = _views(7)
     with pytest.raises(EstimationError, match="views: only 1 views"):
