@@ -255,8 +255,11 @@ def difference_histogram(img: np.ndarray, step: int, hist: np.ndarray) -> None: 
         row = img[y]
         x = 0
         while x + 5 <= W:
-            a0, a1, a2, a3, a4 = np.int64(row[x]), np.int64(row[x + 1]), np.int64(row[x + 2]), np.int64(row[x + 3]), \
-                np.int64(row[x + 4])
+            a0 = np.int64(row[x])
+            a1 = np.int64(row[x + 1])
+            a2 = np.int64(row[x + 2])
+            a3 = np.int64(row[x + 3])
+            a4 = np.int64(row[x + 4])
             h0[abs(a1 - a0)] += 1
             h1[abs(a2 - a1)] += 1
             h2[abs(a3 - a2)] += 1
