@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import threading
 
 import numpy as np
@@ -36,7 +37,7 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type, touched: bool = Fals
     is asked for. A name is one array at a time on its thread: the caller's use of it ends before the
     name is asked for again there. What does not fit is made afresh (``touched``: by
     :func:`new_image`)."""
-    n = int(np.prod(shape)) * np.dtype(dtype).itemsize
+    n = math.prod(shape) * np.dtype(dtype).itemsize
     bufs = getattr(_SCRATCH, "bufs", None)
     if bufs is None:
         bufs = _SCRATCH.bufs = {}

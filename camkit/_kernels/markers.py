@@ -519,6 +519,48 @@ def _hull_quad(g: int, area: int, start: np.ndarray, order: np.ndarray, ry: np.n
     stats[g, 5] = 1
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _fit_homography(src: np.ndarray, dst: np.ndarray, out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out`` (3, 3): the homography taking ``src`` (P, 2) to ``dst`` (P, 2) of
+    :func:`fit_homographies`; NaN where the points coincide or the system is singular."""
+    P = src.shape[0]
+    M, Ts, Td, ok = dlt_normal(src, dst)
+    if not ok:
+        out[:, :] = np.nan
+        return
+    for c in range(8):  # elimination with partial pivoting on [M[:8, :8] | -M[:8, 8]]
+        piv = c
+        for r in range(c + 1, 8):
+            if abs(M[r, c]) > abs(M[piv, c]):
+                piv = r
+        if not abs(M[piv, c]) > 1e-10 * P:
+            out[:, :] = np.nan
+            return
+        if piv != c:
+            for j in range(9):
+                M[c, j], M[piv, j] = M[piv, j], M[c, j]
+        for r in range(c + 1, 8):
+            f = M[r, c] / M[c, c]
+            if f != 0.0:
+                for j in range(c, 9):
+                    M[r, j] -= f * M[c, j]
+    h = np.empty(9)
+    h[8] = 1.0
+    for c in range(7, -1, -1):
+        acc = -M[c, 8]
+        for j in range(c + 1, 8):
+            acc -= M[c, j] * h[j]
+        h[c] = acc / M[c, c]
+    # H = Td^-1 Hn Ts; Td = [[t, 0, -t dx], [0, t, -t dy], [0, 0, 1]] inverts in closed form.
+    Hn = h.reshape(3, 3) @ Ts
+    t = Td[0, 0]
+    dx, dy = -Td[0, 2] / t, -Td[1, 2] / t
+    for c in range(3):
+        out[0, c] = Hn[0, c] / t + dx * Hn[2, c]
+        out[1, c] = Hn[1, c] / t + dy * Hn[2, c]
+        out[2, c] = Hn[2, c]
+
+
 def _make_fit_homographies(PARALLEL: int):
     """:func:`fit_homographies`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
 
@@ -529,49 +571,12 @@ def _make_fit_homographies(PARALLEL: int):
         :func:`camkit._kernels.calib.dlt_normal`) in its inhomogeneous form: h33 = 1 in the
         normalised frames (the source centroid is their origin and maps to a finite point), the
         other eight from the 8 x 8 normal equations by Gaussian elimination with partial
-        pivoting; NaN where the points coincide or the system is singular (collinear points)."""
+        pivoting; NaN where the points coincide or the system is singular (collinear points)
+        (:func:`_fit_homography`)."""
         if PARALLEL:  # (the closure's int keys the cache: the twins apart)
             pass
-        K, P = src.shape[0], src.shape[1]
-        for k in prange(K):
-            M, Ts, Td, ok = dlt_normal(src[k], dst[k])
-            if not ok:
-                out[k, :, :] = np.nan
-                continue
-            for c in range(8):  # elimination with partial pivoting on [M[:8, :8] | -M[:8, 8]]
-                piv = c
-                for r in range(c + 1, 8):
-                    if abs(M[r, c]) > abs(M[piv, c]):
-                        piv = r
-                if not abs(M[piv, c]) > 1e-10 * P:
-                    ok = False
-                    break
-                if piv != c:
-                    for j in range(9):
-                        M[c, j], M[piv, j] = M[piv, j], M[c, j]
-                for r in range(c + 1, 8):
-                    f = M[r, c] / M[c, c]
-                    if f != 0.0:
-                        for j in range(c, 9):
-                            M[r, j] -= f * M[c, j]
-            if not ok:
-                out[k, :, :] = np.nan
-                continue
-            h = np.empty(9)
-            h[8] = 1.0
-            for c in range(7, -1, -1):
-                acc = -M[c, 8]
-                for j in range(c + 1, 8):
-                    acc -= M[c, j] * h[j]
-                h[c] = acc / M[c, c]
-            # H = Td^-1 Hn Ts; Td = [[t, 0, -t dx], [0, t, -t dy], [0, 0, 1]] inverts in closed form.
-            Hn = h.reshape(3, 3) @ Ts
-            t = Td[0, 0]
-            dx, dy = -Td[0, 2] / t, -Td[1, 2] / t
-            for c in range(3):
-                out[k, 0, c] = Hn[0, c] / t + dx * Hn[2, c]
-                out[k, 1, c] = Hn[1, c] / t + dy * Hn[2, c]
-                out[k, 2, c] = Hn[2, c]
+        for k in prange(src.shape[0]):
+            _fit_homography(src[k], dst[k], out[k])
 
     return fit_homographies
 
@@ -1110,3 +1115,386 @@ def nearest_codes(bits: np.ndarray, turned: np.ndarray, ids: np.ndarray, turns: 
                 if d < best:
                     best, bt, bi = d, t, c
         ids[k], turns[k], errors[k] = bi, bt, best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def marker_clearance(sign: np.ndarray, lo: float, hi: float, u: np.ndarray, v: np.ndarray,
+                     out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``out[k]``: how far (px) a ChArUco corner lies from the two markers beside it, the
+    nearest point of either marker's four sides, through its steps ``u[k]``, ``v[k]`` (a
+    square's along the board's x and y, px) with the corner at 0; inf where that is NaN (a
+    step unknown). The markers span ``lo`` to ``hi`` of their squares; one lies on the
+    corner's (+x, -y ``sign[k]``) side, the other on its (-x, +y ``sign[k]``) side. (The
+    arithmetic of ``camkit.target.charuco._clearance``'s arrays, point by point.)"""
+    cx = np.empty(4)
+    cy = np.empty(4)
+    for k in range(sign.shape[0]):
+        best = np.inf
+        nan = False
+        for m in range(2):
+            sa = 1.0 if m == 0 else -1.0
+            sb = (-1.0 if m == 0 else 1.0) * sign[k]
+            for j in range(4):
+                mx = hi if j == 1 or j == 2 else lo
+                my = hi if j >= 2 else lo
+                a = sa * mx
+                b = sb * my
+                cx[j] = a * u[k, 0] + b * v[k, 0]
+                cy[j] = a * u[k, 1] + b * v[k, 1]
+            for j in range(4):
+                dx = cx[(j + 1) % 4] - cx[j]
+                dy = cy[(j + 1) % 4] - cy[j]
+                t = -(cx[j] * dx + cy[j] * dy) / max(dx * dx + dy * dy, 1e-12)
+                t = min(max(t, 0.0), 1.0)
+                h = math.hypot(cx[j] + t * dx, cy[j] + t * dy)
+                if h != h:
+                    nan = True
+                elif h < best:
+                    best = h
+        out[k] = np.inf if nan else best
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_reading(img: np.ndarray, a: float, b: float, c: np.ndarray, e1: np.ndarray, e2: np.ndarray,
+                  reach: np.ndarray, margin: float, min_clear: float, box: float, gx: np.ndarray, gy: np.ndarray,
+                  noise: float, misfit_share: float, min_chi2: float, d: np.ndarray, theta: np.ndarray,
+                  cov: np.ndarray, fits: np.ndarray, read: np.ndarray) -> None:  # pragma: no cover - numba
+    """The light across each ChArUco corner ``c[k]`` (K, 2), read from its mirrored boxes (the
+    front of :func:`camkit.target.charuco._light`, in its arithmetic): its steps ``e1[k]``,
+    ``e2[k]`` (px along the board's x and y), its fit's ``reach[k]`` (px) and the white
+    margin's share of a square ``margin`` place ten boxes (half-size ``box`` of the places'
+    clearance; samples ``gx``, ``gy``) at ``+d[k]`` and ``-d[k]`` (K, 10, 2, written) where
+    that clearance is ``min_clear`` px at least; their shades and spreads
+    (:func:`box_shades`, image ``img`` stretched by ``a * v + b``) give ``theta[k]``,
+    ``cov[k]`` and ``fits[k]`` (:func:`light_fit`, the image's ``noise``, ``misfit_share``).
+    ``read[k]``: the corner's boxes are clear, inside the image, in two directions and two
+    shades, and the light read has a chi-square over ``min_chi2``; the rest of its outputs
+    are undefined where not."""
+    K = c.shape[0]
+    G = gx.shape[0]
+    along = (0.0, 0.0, 0.5, 0.0, 1.0)
+    across = (0.0, 0.5, 0.0, 1.0, 0.0)
+    px = np.empty((1, 10, 2))
+    s0 = np.empty((1, 10))
+    s1 = np.empty((1, 10))
+    v0 = np.empty((1, 10))
+    v1 = np.empty((1, 10))
+    hb = np.empty(1)
+    inside = np.empty(1, dtype=np.bool_)
+    seen = np.empty(1)
+    fit1 = np.empty(1, dtype=np.bool_)
+    rank = np.empty(1, dtype=np.bool_)
+    th = np.empty((1, 4))
+    cv = np.empty((1, 4, 4))
+    for k in range(K):
+        read[k] = False
+        l1 = math.hypot(e1[k, 0], e1[k, 1])
+        l2 = math.hypot(e2[k, 0], e2[k, 1])
+        sine = abs(e1[k, 0] * e2[k, 1] - e1[k, 1] * e2[k, 0]) / max(l1 * l2, 1e-12)
+        r = reach[k]
+        clear = min(0.5 * r, 0.5 * margin * min(l1, l2) * sine)
+        if not clear >= min_clear:
+            continue
+        a1 = clear / (l1 * sine)
+        a2 = clear / (l2 * sine)
+        for p in range(5):
+            bx = min(a1 + along[p] * (r / l1), 0.5)
+            by = min(a2 + across[p] * (r / l2), 0.5)
+            for q in range(2):
+                oy = by if q == 0 else -by
+                i = p + 5 * q
+                d[k, i, 0] = bx * e1[k, 0] + oy * e2[k, 0]
+                d[k, i, 1] = bx * e1[k, 1] + oy * e2[k, 1]
+        hb[0] = box * clear
+        inside[0] = True
+        for i in range(10):
+            px[0, i, 0] = c[k, 0] + d[k, i, 0]
+            px[0, i, 1] = c[k, 1] + d[k, i, 1]
+        box_shades(img, a, b, px, hb, gx, gy, s0, v0, inside)
+        for i in range(10):
+            px[0, i, 0] = c[k, 0] + -d[k, i, 0]
+            px[0, i, 1] = c[k, 1] + -d[k, i, 1]
+        box_shades(img, a, b, px, hb, gx, gy, s1, v1, inside)
+        light_fit(s0, s1, v0, v1, d[k:k + 1], noise, G, misfit_share, th, cv, seen, fit1, rank)
+        if not (inside[0] and rank[0] and seen[0] > min_chi2):
+            continue
+        read[k] = True
+        fits[k] = fit1[0]
+        for i in range(4):
+            theta[k, i] = th[0, i]
+            for j in range(4):
+                cov[k, i, j] = cv[0, i, j]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_verdicts(idx: np.ndarray, c: np.ndarray, shift: np.ndarray, scov: np.ndarray, fits: np.ndarray,
+                   win: np.ndarray, max_shift: float, min_chi2: float, max_sigma: float, out: np.ndarray,
+                   sig: np.ndarray) -> None:  # pragma: no cover - numba
+    """The end of :func:`camkit.target.charuco._light`, in its arithmetic: each corner
+    ``idx[k]`` placed at ``c[k]`` and moved ``shift[k]`` by its refit under the light read
+    (NaN where the refit found no saddle), the move's covariance ``scov[k]`` (2, 2). A move
+    counts where its chi-square is over ``min_chi2`` (or unknown); it is taken where the
+    light's pairs fit it (``fits[k]``) and it is at most ``max_shift`` of the fit's window
+    ``win[k]``: ``out[idx[k]]`` moved, ``sig[idx[k]]`` grown by the move's variance. Any
+    other move that counts is added to the corner's sigma, and the corner dropped (NaN)
+    where that passes ``max_sigma``."""
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        s00, s01, s11 = scov[k, 0, 0], scov[k, 0, 1], scov[k, 1, 1]
+        svar = 0.5 * (s00 + s11)
+        sx, sy = shift[k, 0], shift[k, 1]
+        size = math.hypot(sx, sy)
+        small = math.isfinite(size) and size <= max_shift * win[k] and math.isfinite(svar)
+        sdet = s00 * s11 - s01 * s01
+        chi2 = (s11 * (sx * sx) - 2.0 * s01 * sx * sy + s00 * (sy * sy)) / sdet
+        if chi2 <= min_chi2:  # (NaN: the move unknown, it counts)
+            continue
+        if fits[k] and small:
+            out[i, 0] = c[k, 0] + sx
+            out[i, 1] = c[k, 1] + sy
+            sig[i] = math.sqrt(sig[i] * sig[i] + svar)
+            continue
+        grown = math.sqrt(sig[i] * sig[i] + size * size)
+        if grown <= max_sigma:
+            sig[i] = grown
+        else:
+            out[i, 0] = np.nan
+            out[i, 1] = np.nan
+            sig[i] = np.nan
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def light_jacobian(quad: np.ndarray, lin: np.ndarray, theta: np.ndarray, q: np.ndarray, pts: np.ndarray,
+                   J: np.ndarray) -> None:  # pragma: no cover - numba
+    """How far each of the light's four numbers moves each saddle (``J`` (K, 2, 4), px per
+    unit; the end of :func:`camkit.target.charuco._light_refit`, in its arithmetic): the
+    inverse Hessian of the fit's quadratic terms ``quad[k]`` (a, b, c of a x^2 + b x y + c y^2)
+    times each number's change of its linear terms ``lin[k]`` (4, 2), scaled by how much
+    further the refit moved (``pts[k]`` to ``q[k]``) than the light ``theta[k]`` predicts to
+    first order: 1 to 2 times (1 where either is unknown)."""
+    for k in range(quad.shape[0]):
+        a2, b2, c2 = quad[k, 0], quad[k, 1], quad[k, 2]
+        det = 4.0 * a2 * c2 - b2 * b2
+        h00 = 2.0 * c2 / det
+        h01 = -b2 / det
+        h11 = 2.0 * a2 / det
+        for t in range(4):
+            J[k, 0, t] = h00 * lin[k, t, 0] + h01 * lin[k, t, 1]
+            J[k, 1, t] = h01 * lin[k, t, 0] + h11 * lin[k, t, 1]
+        # (The first-order move summed as NumPy's einsum sums four terms: pairs 0, 2 and 1, 3.)
+        fx = (J[k, 0, 0] * theta[k, 0] + J[k, 0, 2] * theta[k, 2]) + (J[k, 0, 1] * theta[k, 1]
+                                                                      + J[k, 0, 3] * theta[k, 3])
+        fy = (J[k, 1, 0] * theta[k, 0] + J[k, 1, 2] * theta[k, 2]) + (J[k, 1, 1] * theta[k, 1]
+                                                                      + J[k, 1, 3] * theta[k, 3])
+        ratio = math.hypot(q[k, 0] - pts[k, 0], q[k, 1] - pts[k, 1]) / math.hypot(fx, fy)
+        gain = 1.0 if ratio != ratio else min(max(ratio, 1.0), 2.0)
+        for i in range(2):
+            for t in range(4):
+                J[k, i, t] *= gain
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _x_verdict(v: np.ndarray, work: np.ndarray) -> tuple[bool, float]:  # pragma: no cover - numba
+    """Whether the shades ``v`` (32, round a closed curve about a corner) are an X-junction's
+    (:func:`x_junctions`), and the middle of the darkest and brightest; the sums as NumPy's
+    ``mean`` makes them (:func:`_pairwise_sum`; ``work``: 32 scratch values)."""
+    n = v.shape[0]
+    m = _pairwise_sum(v, 0, n) / n
+    lo = v[0]
+    hi = v[0]
+    nan = False
+    changes = 0
+    prev = v[n - 1] > m
+    for j in range(n):
+        x = v[j]
+        if x != x:
+            nan = True
+        lo = min(lo, x)
+        hi = max(hi, x)
+        s = x > m
+        changes += s != prev
+        prev = s
+        work[j] = abs(x - v[(j + n // 2) % n])
+    if nan:
+        return False, np.nan
+    contrast = hi - lo
+    sym = _pairwise_sum(work, 0, n) / n / max(contrast, 1e-12)
+    return changes == 4 and contrast > 0.15 and sym < 0.25, 0.5 * (lo + hi)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def x_verdicts(v: np.ndarray, is_x: np.ndarray, mid: np.ndarray) -> None:  # pragma: no cover - numba
+    """:func:`_x_verdict` of each row of shades ``v`` (K, 32)."""
+    work = np.empty(v.shape[1])
+    for k in range(v.shape[0]):
+        is_x[k], mid[k] = _x_verdict(v[k], work)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def x_junctions(img: np.ndarray, a: float, b: float, pts: np.ndarray, rho: np.ndarray, cos: np.ndarray,
+                sin: np.ndarray, is_x: np.ndarray, mid: np.ndarray) -> None:  # pragma: no cover - numba
+    """Whether each point ``pts[k]`` is an X-junction, on the circle of radius ``rho[k]`` about
+    it (32 places at angles of cosines ``cos``, sines ``sin``; the image ``img`` stretched by
+    ``a * v + b``, bilinear, edges replicated): the shade crosses its mean four times, its
+    darkest and brightest differ by 0.15 at least, and it is point-symmetric (the mean
+    difference of opposite shades under a quarter of that contrast); ``mid[k]`` the middle of
+    the darkest and brightest shades (NaN where a shade is)."""
+    n = cos.shape[0]
+    v = np.empty(n)
+    work = np.empty(n)
+    for k in range(pts.shape[0]):
+        for j in range(n):
+            v[j] = bilinear(img, pts[k, 0] + rho[k] * cos[j], pts[k, 1] + rho[k] * sin[j]) * a + b
+        is_x[k], mid[k] = _x_verdict(v, work)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def pair_votes(obj: np.ndarray, img: np.ndarray, grid: np.ndarray, pitch: np.ndarray, floor: float,
+               agree: np.ndarray, disagree: np.ndarray) -> None:  # pragma: no cover - numba
+    """For each of n markers (``obj`` (n, 4, 2): its corners on the board; ``img`` (n, 4, 2): in
+    the image; ``grid`` (n, 2): its place in the layout; ``pitch`` (n,): its layout's pitch in
+    pixels), how many of the pairs within two places of it fit one homography and how many do
+    not (``camkit.target._markers._pair_votes``): the homography of both markers' eight corners
+    (:func:`_fit_homography`) misses none by ``floor`` px or 0.15 of the smaller pitch (the
+    worst miss the largest distance, a homography that sends a point to infinity or none at
+    all missing by inf). The points mapped as NumPy's einsum sums them (``h0 x + h2``, then
+    ``+ h1 y``)."""
+    n = obj.shape[0]
+    src = np.empty((8, 2))
+    dst = np.empty((8, 2))
+    H = np.empty((3, 3))
+    for i in range(n):
+        agree[i] = 0
+        disagree[i] = 0
+    for a in range(n):
+        for j in range(a + 1, n):
+            if max(abs(grid[a, 0] - grid[j, 0]), abs(grid[a, 1] - grid[j, 1])) > 2:
+                continue
+            for c in range(4):
+                for e in range(2):
+                    src[c, e] = obj[a, c, e]
+                    src[4 + c, e] = obj[j, c, e]
+                    dst[c, e] = img[a, c, e]
+                    dst[4 + c, e] = img[j, c, e]
+            _fit_homography(src, dst, H)
+            worst = 0.0
+            for p in range(8):
+                x, y = src[p, 0], src[p, 1]
+                u = (H[0, 0] * x + H[0, 2] * 1.0) + H[0, 1] * y
+                v = (H[1, 0] * x + H[1, 2] * 1.0) + H[1, 1] * y
+                w = (H[2, 0] * x + H[2, 2] * 1.0) + H[2, 1] * y
+                miss = math.hypot(u / w - dst[p, 0], v / w - dst[p, 1])
+                if not math.isfinite(miss):  # (NaN: no homography, or a point sent to infinity)
+                    worst = np.inf
+                    break
+                worst = max(worst, miss)
+            if worst < max(floor, 0.15 * min(pitch[a], pitch[j])):
+                agree[a] += 1
+                agree[j] += 1
+            else:
+                disagree[a] += 1
+                disagree[j] += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mapped(H: np.ndarray, x: float, y: float) -> tuple[float, float]:  # pragma: no cover - numba
+    """(x, y) through the homography ``H`` (3, 3), each row's sum as NumPy's einsum makes it
+    (``h0 x + h2``, then ``+ h1 y``: :func:`camkit.target._homography.apply_homographies`)."""
+    u = (H[0, 0] * x + H[0, 2] * 1.0) + H[0, 1] * y
+    v = (H[1, 0] * x + H[1, 2] * 1.0) + H[1, 1] * y
+    w = (H[2, 0] * x + H[2, 2] * 1.0) + H[2, 1] * y
+    return u / w, v / w
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def charuco_predictions(sq: np.ndarray, homs: np.ndarray, side: np.ndarray, obj: np.ndarray, img: np.ndarray,
+                        sx: int, sy: int, s: float, offsets: np.ndarray, five: np.ndarray, size: np.ndarray,
+                        count: np.ndarray) -> None:  # pragma: no cover - numba
+    """Step 4's predictions of a ChArUco board's corners (``camkit.target.charuco._detect``, in
+    its arithmetic) from its C confirmed markers: their squares ``sq`` (C, 2), homographies
+    ``homs`` (C, 3, 3) board to image, pitches ``side`` (C,) px, corners ``obj`` (C, 4, 2) on
+    the board and ``img`` (C, 4, 2) in the image; the board ``sx`` x ``sy`` squares of side
+    ``s``. Each inner corner touched by a marker's square: its place and the places half a
+    square either way along x and y (``offsets`` (5, 2)), ``five`` (N, 5, 2), through each
+    touching marker's homography, averaged (summed in the markers' order); where two or more
+    confirmed markers touch it, through the homography of all their corners, and where two,
+    its place the midpoint of their corners nearest it (the steps moved with it); ``size``
+    (N,): the largest touching pitch, 0 where none touches; ``count`` (N,): how many markers
+    touch it (``five`` NaN where none)."""
+    C = sq.shape[0]
+    nx = sx - 1
+    N = five.shape[0]
+    count[:] = 0.0
+    five[:, :, :] = 0.0
+    size[:] = 0.0
+    for c in range(C):
+        for t in range(4):  # the square's corners (0, 0), (1, 0), (0, 1), (1, 1)
+            X = sq[c, 0] + (t & 1)
+            Y = sq[c, 1] + (t >> 1)
+            if X < 1 or Y < 1 or X > sx - 1 or Y > sy - 1:
+                continue
+            cid = (Y - 1) * nx + (X - 1)
+            for o in range(5):
+                px, py = _mapped(homs[c], X * s + offsets[o, 0], Y * s + offsets[o, 1])
+                five[cid, o, 0] += px
+                five[cid, o, 1] += py
+            count[cid] += 1.0
+            size[cid] = max(size[cid], side[c])
+    src = np.empty((4 * C, 2))
+    dst = np.empty((4 * C, 2))
+    H = np.empty((3, 3))
+    q = np.empty((5, 2))
+    touch = np.empty(C, dtype=np.int64)
+    for cid in range(N):
+        if count[cid] == 0.0:
+            five[cid, :, :] = np.nan
+            continue
+        for o in range(5):
+            five[cid, o, 0] /= count[cid]
+            five[cid, o, 1] /= count[cid]
+        cx = cid % nx + 1
+        cy = cid // nx + 1
+        k = 0
+        for c in range(C):
+            if cx - 1 <= sq[c, 0] <= cx and cy - 1 <= sq[c, 1] <= cy:
+                touch[k] = c
+                k += 1
+        if k < 2:
+            continue
+        for i in range(k):
+            for j in range(4):
+                src[4 * i + j, 0] = obj[touch[i], j, 0]
+                src[4 * i + j, 1] = obj[touch[i], j, 1]
+                dst[4 * i + j, 0] = img[touch[i], j, 0]
+                dst[4 * i + j, 1] = img[touch[i], j, 1]
+        _fit_homography(src[:4 * k], dst[:4 * k], H)
+        good = True
+        for o in range(5):
+            q[o, 0], q[o, 1] = _mapped(H, cx * s + offsets[o, 0], cy * s + offsets[o, 1])
+            good = good and math.isfinite(q[o, 0]) and math.isfinite(q[o, 1])
+        if not good:
+            continue
+        five[cid, :, :] = q
+        if k != 2:
+            continue
+        # The two markers' corners nearest the chessboard corner: their midpoint.
+        mx = 0.0
+        my = 0.0
+        for i in range(2):
+            best = 0
+            bd = np.inf
+            for j in range(4):
+                d = math.hypot(obj[touch[i], j, 0] - cx * s, obj[touch[i], j, 1] - cy * s)
+                if d < bd:
+                    bd = d
+                    best = j
+            mx += img[touch[i], best, 0]
+            my += img[touch[i], best, 1]
+        mx /= 2
+        my /= 2
+        if math.isfinite(mx) and math.isfinite(my):
+            dx = mx - five[cid, 0, 0]
+            dy = my - five[cid, 0, 1]
+            for o in range(5):
+                five[cid, o, 0] += dx
+                five[cid, o, 1] += dy

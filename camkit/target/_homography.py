@@ -29,14 +29,6 @@ def fit_homography(src: np.ndarray, dst: np.ndarray) -> np.ndarray | None:
     return H if np.isfinite(H).all() else None
 
 
-def homography_misfit(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """For each of K point sets, ``src`` (K, P, 2) to ``dst`` (K, P, 2): the largest distance
-    (in ``dst``'s units) by which the least-squares homography misses a point; inf where none
-    is fitted."""
-    miss = np.hypot(*(apply_homographies(fit_homographies(src, dst), src) - dst).transpose(2, 0, 1)).max(axis=1)
-    return np.where(np.isfinite(miss), miss, np.inf)
-
-
 def apply_homographies(H: np.ndarray, p: np.ndarray) -> np.ndarray:
     """Each point set ``p`` (K, P, 2) mapped by its homography ``H`` (K, 3, 3); NaN where a
     point maps to infinity (or ``H`` is NaN)."""

@@ -18,7 +18,7 @@ from scipy.spatial import cKDTree
 from camkit._alloc import scratch
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
-from camkit.target._homography import apply_homographies, fit_homographies, homography_misfit
+from camkit.target._homography import apply_homographies, fit_homographies
 from camkit.target.aruco import ArucoDictionary
 from camkit.target.checkerboard import (
     _SIGMA_RATIO,
@@ -79,23 +79,31 @@ def is_x_corner(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> np.ndarra
 
 
 def x_corner_shades(grey: np.ndarray, pts: np.ndarray, rho: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`is_x_corner`, and the middle of the darkest and brightest shades on each circle."""
-    ang = np.arange(32) * 2 * np.pi / 32
-    v = _sample(grey, pts[:, :1] + rho[:, None] * np.cos(ang), pts[:, 1:] + rho[:, None] * np.sin(ang), "bilinear")
-    return x_shades(v)
+    """:func:`is_x_corner`, and the middle of the darkest and brightest shades on each circle
+    (kernel :func:`camkit._kernels.markers.x_junctions`; the shades bilinear, as
+    :func:`x_shades` judges them)."""
+    img, a, b = _stretched(grey)
+    pts = np.ascontiguousarray(pts, dtype=np.float64).reshape(-1, 2)
+    rho = np.ascontiguousarray(np.broadcast_to(rho, (len(pts),)), dtype=np.float64)
+    is_x, mid = np.empty(len(pts), dtype=bool), np.empty(len(pts))
+    markers_kernels.x_junctions(img, a, b, pts, rho, _CIRCLE_COS, _CIRCLE_SIN, is_x, mid)
+    return is_x, mid
+
+
+#: The 32 places of :func:`x_corner_shades`' circle: their angles' cosines and sines.
+_CIRCLE_COS, _CIRCLE_SIN = np.cos(np.arange(32) * 2 * np.pi / 32), np.sin(np.arange(32) * 2 * np.pi / 32)
 
 
 def x_shades(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For shades ``v`` (K, 32) sampled round a closed curve about each corner (a circle, or an
     ellipse on a board seen aslant): whether they are an X-junction's (four alternating
-    sectors about their mean, point-symmetric, a contrast of 0.15 at least), and the middle
-    of the darkest and brightest."""
-    sign = v > v.mean(axis=1, keepdims=True)
-    changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
-    lo, hi = v.min(axis=1), v.max(axis=1)
-    contrast = hi - lo
-    sym = np.abs(v - np.roll(v, 16, axis=1)).mean(axis=1) / np.maximum(contrast, 1e-12)
-    return (changes == 4) & (contrast > 0.15) & (sym < 0.25), 0.5 * (lo + hi)
+    sectors about their mean, point-symmetric: the mean difference of opposite shades under
+    a quarter of the contrast, which is 0.15 at least), and the middle of the darkest and
+    brightest (kernel :func:`camkit._kernels.markers.x_verdicts`)."""
+    v = np.ascontiguousarray(v, dtype=np.float64)
+    is_x, mid = np.empty(len(v), dtype=bool), np.empty(len(v))
+    markers_kernels.x_verdicts(v, is_x, mid)
+    return is_x, mid
 
 
 def read_markers(g: np.ndarray, quads: np.ndarray, d: ArucoDictionary, border: int = 1,
@@ -616,8 +624,10 @@ def find_markers(full: np.ndarray, d: ArucoDictionary, border: int = 1, corner_s
                 add_marker(level, int(codes[j]), turned[j])
         if len(level) >= len(found):
             found = level  # the finer level's corners where it reads as much
-        # A marker's narrowest side per cell, at this level.
-        if len(level) >= 2 and np.median(narrowest_side(np.stack([c[0] for c in level.values()])) / f / n_cells) >= 2.0:
+        # A marker's narrowest side per cell, at this level (none finer left to read on the full
+        # image).
+        if k > 0 and len(level) >= 2 and np.median(narrowest_side(np.stack([c[0] for c in level.values()]))
+                                                    / f / n_cells) >= 2.0:
             break
     return found, f, g
 
@@ -856,19 +866,10 @@ def _pair_votes(found: dict[int, list[np.ndarray]], obj: np.ndarray, grid: np.nd
     agree = np.zeros(len(ids), dtype=np.int64)
     disagree = np.zeros(len(ids), dtype=np.int64)
     if len(ids) >= 2:
-        g = grid[ids]
-        near = np.triu(np.abs(g[:, None] - g[None]).max(axis=2) <= 2, k=1)
-        a, j = np.nonzero(near)  # each pair once, in the order of ids
-        if len(a):
-            own = obj[ids]
-            img = np.stack([found[m][0] for m in ids])
-            worst = homography_misfit(np.concatenate([own[a], own[j]], axis=1),
-                                      np.concatenate([img[a], img[j]], axis=1))
-            p = np.array([pitch[m] for m in ids])
-            fits = worst < np.maximum(2.0 * factor, 0.15 * np.minimum(p[a], p[j]))
-            for both in (a, j):
-                np.add.at(agree, both[fits], 1)
-                np.add.at(disagree, both[~fits], 1)
+        markers_kernels.pair_votes(np.ascontiguousarray(obj[ids], dtype=np.float64),
+                                   np.stack([found[m][0] for m in ids]).astype(np.float64),
+                                   np.ascontiguousarray(grid[ids], dtype=np.int64),
+                                   np.array([pitch[m] for m in ids], dtype=np.float64), 2.0 * factor, agree, disagree)
     return agree, disagree
 
 

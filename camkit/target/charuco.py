@@ -255,6 +255,12 @@ class Charuco(Target):
         cy = np.stack([y0, y0, y0 + m, y0 + m], axis=-1)
         return np.stack([cx, cy, np.zeros_like(cx)], axis=-1)
 
+    @property
+    def n_points(self) -> int:
+        """The inner chessboard's corners, ``(squares_x - 1) (squares_y - 1)``: as many as
+        :meth:`object_points` has rows, without making them."""
+        return (self.squares_x - 1) * (self.squares_y - 1)
+
     def object_points(self) -> np.ndarray:
         """The ChArUco (inner chessboard) corners, ((squares_x - 1) (squares_y - 1), 3), row
         by row: corner ``(x, y)`` at ``((x + 1) square, (y + 1) square, 0)``."""
@@ -384,54 +390,26 @@ def _detect(board: Charuco, image: np.ndarray) -> Detection:
                 side_px[m] = float(np.sqrt(abs(quad_area(q)))) * board.square / board.marker
                 confirmed.append(m)
     # 4. Chessboard corners next to confirmed markers, predicted, then at their saddle points.
-    sx = board.squares_x
     # Each corner's place and a square's steps along the board's x and y there (from half a
-    # square either side), through each touching marker's homography, averaged.
+    # square either side), through each touching marker's homography, averaged. Where two
+    # confirmed markers touch a corner (its four squares), the steps along the board are their
+    # least-squares homography's (one marker's quad read a pixel off at a thin margin weighs
+    # half; a wider neighbourhood bends away from a homography through a fisheye), and the
+    # place the midpoint of their corners nearest it: they lie either side of it on a
+    # diagonal, a margin's diagonal away on the board, so it is their midpoint to second order
+    # in that distance, whatever the lens (through a fisheye the homography of both puts it
+    # 3-10 px off on squares of 100 px, the midpoint 0.8-1.9: seed 220). Kernel
+    # :func:`~camkit._kernels.markers.charuco_predictions`.
     s = board.square
-    offsets = np.array([[0.0, 0.0], [0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]]) * s
-    pred_sum = np.zeros((N, 5, 2))
-    pred_n = np.zeros(N)
-    size = np.zeros(N)
-    # Each confirmed marker's four corners of its square, in turn (the sums in that order).
-    mine = ms[confirmed][:, None, :] + np.array([[0, 0], [1, 0], [0, 1], [1, 1]])  # (C, 4, 2)
-    mi, ci = np.nonzero((mine >= 1).all(axis=2) & (mine[..., 0] <= sx - 1) & (mine[..., 1] <= board.squares_y - 1))
-    at = mine[mi, ci]
-    cid = (at[:, 1] - 1) * (sx - 1) + (at[:, 0] - 1)
-    hs = np.stack([homs[m] for m in confirmed])[mi]
-    np.add.at(pred_sum, cid, apply_homographies(hs, (at * s)[:, None, :] + offsets))
-    np.add.at(pred_n, cid, 1)
-    np.maximum.at(size, cid, np.array([side_px[m] for m in confirmed])[mi])
-    cand = np.flatnonzero(pred_n > 0)
-    five = pred_sum[cand] / pred_n[cand, None, None]
-    # Where two confirmed markers touch a corner (its four squares), the steps along the board
-    # are their least-squares homography's (one marker's quad read a pixel off at a thin margin
-    # weighs half; a wider neighbourhood bends away from a homography through a fisheye), and
-    # the place the midpoint of their corners nearest it (below).
     conf = np.asarray(confirmed)
-    cxy = np.stack([cand % (sx - 1) + 1, cand // (sx - 1) + 1], axis=-1)
-    sq = ms[conf]
-    touch = ((sq[None, :, 0] >= cxy[:, None, 0] - 1) & (sq[None, :, 0] <= cxy[:, None, 0])
-             & (sq[None, :, 1] >= cxy[:, None, 1] - 1) & (sq[None, :, 1] <= cxy[:, None, 1]))  # (corner, marker)
-    count = touch.sum(axis=1)
-    img_q = np.stack([found[m][0] for m in confirmed])
-    for c in np.unique(count[count >= 2]):  # one batched fit per number of touching markers
-        rows = np.flatnonzero(count == c)
-        mk = np.nonzero(touch[rows])[1].reshape(len(rows), c)  # (K, c) indices into confirmed, row by row
-        Hn = fit_homographies(obj[conf[mk]].reshape(len(rows), 4 * c, 2), img_q[mk].reshape(len(rows), 4 * c, 2))
-        q = apply_homographies(Hn, cxy[rows, None] * s + offsets)
-        good = np.isfinite(q).all(axis=(1, 2))
-        five[rows[good]] = q[good]
-        if c == 2:
-            # The two markers' corners nearest the chessboard corner lie either side of it on a
-            # diagonal, a margin's diagonal away on the board: it is their midpoint, to second
-            # order in that distance, whatever the lens (through a fisheye the homography of
-            # both puts it 3-10 px off on squares of 100 px, the midpoint 0.8-1.9: seed 220).
-            own = obj[conf[mk]]  # (K, 2, 4, 2)
-            k = np.argmin(np.hypot(*(own - (cxy[rows, None, None] * s)).transpose(3, 0, 1, 2)), axis=2)  # (K, 2)
-            near = np.take_along_axis(img_q[mk], k[:, :, None, None], axis=2)[:, :, 0]  # (K, 2, 2)
-            mid = near.mean(axis=1)
-            ok = good & np.isfinite(mid).all(axis=1)
-            five[rows[ok]] += (mid[ok] - five[rows[ok], 0])[:, None]
+    five, size, touched = np.empty((N, 5, 2)), np.empty(N), np.empty(N)
+    markers_kernels.charuco_predictions(np.ascontiguousarray(ms[conf], dtype=np.int64),
+                                        np.stack([homs[m] for m in confirmed]),
+                                        np.array([side_px[m] for m in confirmed], dtype=np.float64),
+                                        np.ascontiguousarray(obj[conf]), np.stack([found[m][0] for m in confirmed]),
+                                        board.squares_x, board.squares_y, s, _STEP_OFFSETS * s, five, size, touched)
+    cand = np.flatnonzero(touched > 0)
+    five = five[cand]
     pred = five[:, 0]
     u, v = five[:, 1] - five[:, 2], five[:, 3] - five[:, 4]
     H, W = full.shape
@@ -802,6 +780,11 @@ def _marker_maps(board: Charuco, out: np.ndarray, idx: np.ndarray, quads: dict[i
 _MARKER_MAP_MISFIT = 0.1
 
 
+#: Step 4's places about a corner, in squares: the corner, and half a square either way along the
+#: board's x and y.
+_STEP_OFFSETS = np.array([[0.0, 0.0], [0.5, 0.0], [-0.5, 0.0], [0.0, 0.5], [0.0, -0.5]])
+
+
 #: Step 6 reaches this fraction of the box around a corner inside which a ChArUco board is
 #: point-symmetric (to the markers' black borders' inner edges): blur carries the bits in.
 _SYM_BOX = 0.7
@@ -978,20 +961,14 @@ def _clearance(board: Charuco, cand: np.ndarray, u: np.ndarray, v: np.ndarray) -
     """How far (pixels) each corner ``cand`` lies from its two markers, through the local steps
     ``u``, ``v`` (K, 2: a square's steps along the board's x and y there); inf where a step is
     unknown (a lattice's edge)."""
-    sign = _square_signs(board, cand)
     lo = (board.square - board.marker) / (2 * board.square)  # a marker's near side, in squares
-    hi = 1.0 - lo
-    # The marker squares: (+x, -y sign) and (-x, +y sign) of the corner; each marker's four
-    # corners in squares, then through the local steps, the corner at 0.
-    mk = np.array([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
-    a = np.array([1.0, -1.0])[None, :, None] * mk[None, None, :, 0]  # (1, 2 markers, 4)
-    b = np.array([-1.0, 1.0])[None, :, None] * sign[:, None, None] * mk[None, None, :, 1]  # (K, 2, 4)
-    p0 = a[..., None] * u[:, None, None] + b[..., None] * v[:, None, None]  # (K, 2, 4, 2)
-    d = np.roll(p0, -1, axis=2) - p0  # each marker's four sides
-    t = np.clip(-(p0 * d).sum(axis=-1) / np.maximum((d * d).sum(axis=-1), 1e-12), 0.0, 1.0)
-    near = p0 + t[..., None] * d
-    clear = np.hypot(near[..., 0], near[..., 1]).min(axis=(1, 2))
-    return np.nan_to_num(clear, nan=np.inf)
+    clear = np.empty(len(cand))
+    # Each marker's four sides, its corners in squares through the local steps (the corner at 0):
+    # the markers on the corner's (+x, -y sign) and (-x, +y sign) sides.
+    markers_kernels.marker_clearance(_square_signs(board, cand), lo, 1.0 - lo,
+                                     np.ascontiguousarray(u, dtype=np.float64),
+                                     np.ascontiguousarray(v, dtype=np.float64), clear)
+    return clear
 
 
 def _x_test(board: Charuco, grey: np.ndarray, q: np.ndarray, size: np.ndarray, clear: np.ndarray | None,
@@ -1495,48 +1472,23 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
         return
     c, e1, e2 = out[idx], e1[idx], e2[idx]
     margin = (board.square - board.marker) / (2 * board.square)
-    l1, l2 = np.hypot(*e1.T), np.hypot(*e2.T)
-    sine = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]) / np.maximum(l1 * l2, 1e-12)
     # The light the fit sees: within its window and smoothing's reach. The places lie that far
     # out, half of it off the corner's two edges (px, across them), less where the margin is
-    # narrower (half its width: as far from the marker).
+    # narrower (half its width: as far from the marker). On the (+x, +y) and (+x, -y) sides, in
+    # squares: across each edge that clearance, along it 0, half the reach and the reach
+    # further, at most half a square; their mirrors on the other two. Each place's box of
+    # 5 x 5 samples gives its mean and spread, and the four numbers are fitted from the ten
+    # pairs, each corner's fit its own (kernel :func:`~camkit._kernels.markers.light_reading`).
     reach = win_of[idx] + _LIGHT_REACH * sm_of[idx]
-    clear = np.minimum(0.5 * reach, 0.5 * margin * np.minimum(l1, l2) * sine)
-    keep = clear >= _LIGHT_CLEAR
-    idx, c, e1, e2, l1, l2, sine, reach, clear = (x[keep] for x in (idx, c, e1, e2, l1, l2, sine, reach, clear))
-    if not len(idx):
-        return
-    # The places on the (+x, +y) and (+x, -y) sides, in squares (across each edge ``clear`` px,
-    # along it 0, half the reach and the reach further, at most half a square); their mirrors
-    # on the other two.
-    a1, a2 = clear / (l1 * sine), clear / (l2 * sine)
-    along = np.array([0.0, 0.0, 0.5, 0.0, 1.0])[None]
-    across = np.array([0.0, 0.5, 0.0, 1.0, 0.0])[None]
-    bx = np.minimum(a1[:, None] + along * (reach / l1)[:, None], 0.5)
-    by = np.minimum(a2[:, None] + across * (reach / l2)[:, None], 0.5)
-    off = np.concatenate([np.stack([bx, by], axis=-1), np.stack([bx, -by], axis=-1)], axis=1)  # (K, P, 2)
-    d = off[..., :1] * e1[:, None] + off[..., 1:] * e2[:, None]  # (K, P, 2), px
-    half = _LIGHT_BOX * clear  # the box's half-size, px
-    shades, spreads = [], []
-    inside = np.ones(len(idx), dtype=bool)
-    img, sa, sb = _stretched(full)
-    for sign in (1.0, -1.0):
-        # Each place's box of 5 x 5 samples: their mean and spread.
-        px = c[:, None] + sign * d
-        mean, spread = np.empty(px.shape[:2]), np.empty(px.shape[:2])
-        markers_kernels.box_shades(img, sa, sb, px, half, _BOX_X, _BOX_Y, mean, spread, inside)
-        shades.append(mean)
-        spreads.append(spread)
-    # The four numbers from the ten pairs, each corner's fit its own (kernel
-    # :func:`~camkit._kernels.markers.light_fit`).
     K = len(idx)
+    img, sa, sb = _stretched(full)
+    d = np.empty((K, 10, 2))
     theta, cov = np.empty((K, 4)), np.empty((K, 4, 4))
-    seen, fits, full_rank = np.empty(K), np.empty(K, dtype=bool), np.empty(K, dtype=bool)
-    markers_kernels.light_fit(shades[0], shades[1], spreads[0], spreads[1], np.ascontiguousarray(d), float(noise),
-                              len(_BOX_X), _SHADE_MISFIT, theta, cov, seen, fits, full_rank)
-    read = inside & full_rank
-    with np.errstate(invalid="ignore"):
-        read[read] = seen[read] > _SHADE_CHI2
+    fits, read = np.empty(K, dtype=bool), np.empty(K, dtype=bool)
+    markers_kernels.light_reading(img, sa, sb, np.ascontiguousarray(c), np.ascontiguousarray(e1),
+                                  np.ascontiguousarray(e2), np.ascontiguousarray(reach, dtype=np.float64), margin,
+                                  _LIGHT_CLEAR, _LIGHT_BOX, _BOX_X, _BOX_Y, float(noise), _SHADE_MISFIT, _SHADE_CHI2,
+                                  d, theta, cov, fits, read)
     if not read.any():
         return
     idx, c, theta, cov, fits = idx[read], c[read], theta[read], cov[read], fits[read]
@@ -1549,30 +1501,14 @@ def _light(board: Charuco, full: np.ndarray, out: np.ndarray, sig: np.ndarray, w
         q, J[k] = _light_refit(full, c[k], win_of[idx[k]], float(sm), theta[k])
         shift[k] = q - c[k]
     scov = J @ cov @ J.transpose(0, 2, 1)
-    svar = 0.5 * (scov[:, 0, 0] + scov[:, 1, 1])
-    size = np.hypot(*shift.T)
-    small = np.isfinite(size) & (size <= _SHADE_MAX_SHIFT * win_of[idx]) & np.isfinite(svar)
     # The move counts where it is beyond its own noise (a light read beyond its noise can still
-    # move the saddle less than that: then the corner stays as it was).
-    with np.errstate(invalid="ignore", divide="ignore"):
-        sdet = scov[:, 0, 0] * scov[:, 1, 1] - scov[:, 0, 1] ** 2
-        chi2 = (scov[:, 1, 1] * shift[:, 0] ** 2 - 2 * scov[:, 0, 1] * shift[:, 0] * shift[:, 1]
-                + scov[:, 0, 0] * shift[:, 1] ** 2) / sdet
-    moves = ~(chi2 <= _SHADE_CHI2)  # (and where the refit found no saddle)
-    use = fits & small & moves
-    at = idx[use]
-    out[at] = c[use] + shift[use]
-    sig[at] = np.sqrt(sig[at] ** 2 + svar[use])
-    # In doubt: the light is there but not as read, or moves the saddle further than the fit
-    # reaches: the move is added to the corner's sigma, and where that passes the
-    # checkerboard's bar (or the refit found no saddle, its move unknown) the corner is dropped.
-    doubt = moves & ~use
-    grown = np.sqrt(sig[idx] ** 2 + size ** 2)
-    lost = doubt & ~(grown <= _MAX_CORNER_SIGMA)
-    grow = doubt & ~lost
-    sig[idx[grow]] = grown[grow]
-    out[idx[lost]] = np.nan
-    sig[idx[lost]] = np.nan
+    # move the saddle less than that: then the corner stays as it was); it is taken where the
+    # light fits and the move is small. In doubt (the light is there but not as read, or moves
+    # the saddle further than the fit reaches), the move is added to the corner's sigma, and
+    # where that passes the checkerboard's bar (or the refit found no saddle, its move
+    # unknown) the corner is dropped (kernel :func:`~camkit._kernels.markers.light_verdicts`).
+    markers_kernels.light_verdicts(idx, c, shift, scov, fits, win_of[idx], _SHADE_MAX_SHIFT, _SHADE_CHI2,
+                                   _MAX_CORNER_SIGMA, out, sig)
 
 
 def _light_refit(full: np.ndarray, pts: np.ndarray, r: np.ndarray, sm: float, theta: np.ndarray,
@@ -1595,21 +1531,16 @@ def _light_refit(full: np.ndarray, pts: np.ndarray, r: np.ndarray, sm: float, th
     fixed = np.zeros_like(mosaic)
     detect_kernels.light_divide(mosaic, origin, at, theta, sm * sm, side, fixed)
     q = np.empty_like(pts)
-    J = np.empty((len(pts), 2, 4))
+    quad, lin = np.empty((len(pts), 3)), np.empty((len(pts), 4, 2))
     for w in np.unique(r).tolist():
         g = np.flatnonzero(r == w)
         q[g] = _saddle_fit(fixed, pts[g] + shift[g], w, iters)[0] - shift[g]
         # First order: each number's change of the patch, fitted on the window about the
-        # point's nearest pixel, moves the saddle by H^-1 times its change of the linear terms.
-        quad, lin = np.empty((len(g), 3)), np.empty((len(g), 4, 2))
-        detect_kernels.light_response(mosaic, origin[g], at[g], sm * sm, side, w, _saddle_design(w)[0], quad, lin)
-        a2, b2, c2 = quad.T
-        with np.errstate(divide="ignore", invalid="ignore"):
-            det = 4 * a2 * c2 - b2 * b2
-            h00, h01, h11 = (2 * c2 / det)[:, None], (-b2 / det)[:, None], (2 * a2 / det)[:, None]
-        J[g, 0] = h00 * lin[:, :, 0] + h01 * lin[:, :, 1]  # the inverse Hessian times each number's change
-        J[g, 1] = h01 * lin[:, :, 0] + h11 * lin[:, :, 1]
-    with np.errstate(divide="ignore", invalid="ignore"):
-        first = np.einsum("kia,ka->ki", J, theta)
-        gain = np.clip(np.hypot(*(q - pts).T) / np.hypot(*first.T), 1.0, 2.0)
-    return q, J * np.where(np.isfinite(gain), gain, 1.0)[:, None, None]
+        # point's nearest pixel, moves the saddle by H^-1 times its change of the linear terms
+        # (kernel :func:`~camkit._kernels.markers.light_jacobian`, below).
+        qg, lg = np.empty((len(g), 3)), np.empty((len(g), 4, 2))
+        detect_kernels.light_response(mosaic, origin[g], at[g], sm * sm, side, w, _saddle_design(w)[0], qg, lg)
+        quad[g], lin[g] = qg, lg
+    J = np.empty((len(pts), 2, 4))
+    markers_kernels.light_jacobian(quad, lin, np.ascontiguousarray(theta), q, np.ascontiguousarray(pts), J)
+    return q, J

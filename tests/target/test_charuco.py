@@ -34,6 +34,7 @@ def test_layout_and_ids_are_opencvs(size, legacy):
     b = Charuco(*size, 0.03, 0.022, "DICT_5X5_100", legacy=legacy)
     ref = _cv_board(b)
     np.testing.assert_allclose(b.object_points(), ref.getChessboardCorners(), atol=1e-7)  # float32 there
+    assert b.n_points == len(b.object_points()) == len(ref.getChessboardCorners())
     np.testing.assert_allclose(b.marker_corners(), np.array(ref.getObjPoints()), atol=1e-7)
     np.testing.assert_array_equal(np.arange(b.n_markers), np.ravel(ref.getIds()))
 
@@ -990,6 +991,186 @@ def test_a_corners_white_margin_across_is_measured_from_its_steps():
     m = _margins(board, out, np.array([7]), np.array([[20.0, 0.0]]), np.array([[0.0, 20.0]]))
     assert m[7] == pytest.approx(1.0) and np.isnan(np.delete(m, 7)).all()
 
+
+
+def test_a_corners_clearance_is_the_nearest_point_of_its_two_markers_sides():
+    """``_clearance`` (kernel ``marker_clearance``) against its definition in NumPy: each of the
+    two markers' four corners through the corner's steps, each side's nearest point to the
+    corner (clamped to the side), the least distance; inf where a step is NaN. Bit for bit,
+    on boards of both layouts and markers of any size, sheared and collapsed steps."""
+    from camkit.target.charuco import _clearance, _layout
+
+    def numpy_clearance(board, cand, u, v):
+        nx = board.squares_x - 1
+        sign = np.where(_layout(board)[2][cand // nx + 1, cand % nx + 1], -1.0, 1.0)
+        lo = (board.square - board.marker) / (2 * board.square)
+        hi = 1.0 - lo
+        mk = np.array([[lo, lo], [hi, lo], [hi, hi], [lo, hi]])
+        a = np.array([1.0, -1.0])[None, :, None] * mk[None, None, :, 0]
+        b = np.array([-1.0, 1.0])[None, :, None] * sign[:, None, None] * mk[None, None, :, 1]
+        p0 = a[..., None] * u[:, None, None] + b[..., None] * v[:, None, None]  # (K, 2 markers, 4, 2)
+        d = np.roll(p0, -1, axis=2) - p0
+        t = np.clip(-(p0 * d).sum(axis=-1) / np.maximum((d * d).sum(axis=-1), 1e-12), 0.0, 1.0)
+        near = p0 + t[..., None] * d
+        return np.nan_to_num(np.hypot(near[..., 0], near[..., 1]).min(axis=(1, 2)), nan=np.inf)
+
+    rng = np.random.default_rng(8)
+    for trial in range(60):
+        board = Charuco(int(rng.integers(3, 10)), int(rng.integers(3, 10)), 0.04, float(rng.uniform(0.01, 0.039)),
+                        "DICT_6X6_250", legacy=bool(trial % 2))
+        cand = rng.integers(0, board.n_points, 30)
+        u, v = rng.normal(0.0, 40.0, (30, 2)), rng.normal(0.0, 40.0, (30, 2))
+        if trial % 3 == 0:
+            v[::2] = u[::2] * 0.5  # a collapsed parallelogram
+        u[::7] = np.nan
+        got = _clearance(board, cand, u, v)
+        np.testing.assert_array_equal(got, numpy_clearance(board, cand, u, v))
+        assert np.isinf(got[::7]).all() and np.isfinite(np.delete(got, np.arange(0, 30, 7))).all()
+    # Square on, squares of 40 px, markers of 0.6 of the square: margins of 8 px, the markers in
+    # the diagonal squares, their nearest corners 8 px along either way from the corner.
+    board = Charuco(5, 7, 0.04, 0.024, "DICT_6X6_250")
+    assert _clearance(board, np.array([0, 1]), np.array([[40.0, 0.0]] * 2),
+                      np.array([[0.0, 40.0]] * 2)) == pytest.approx([8.0 * np.sqrt(2.0)] * 2)
+
+
+def test_the_lights_verdicts_and_response_are_those_of_their_numpy_definition():
+    """light_jacobian and light_verdicts (the end of step 8) against the NumPy they replace,
+    bit for bit: the inverse Hessian times each number's change, scaled by the refit's move
+    over the first-order one (1 to 2 times, 1 where unknown); a move beyond its noise taken
+    where the light fits and the move is small, else added to the sigma, the corner dropped
+    past the bar."""
+    from camkit._kernels import markers as mk
+
+    rng = np.random.default_rng(21)
+    K = 400
+    quad = rng.normal(0.0, 1.0, (K, 3))
+    lin = rng.normal(0.0, 1.0, (K, 4, 2))
+    theta = rng.normal(0.0, 0.01, (K, 4))
+    pts = rng.uniform(0.0, 100.0, (K, 2))
+    q = pts + rng.normal(0.0, 0.05, (K, 2))
+    q[::9] = np.nan
+    quad[5] = 0.0  # no Hessian: no first-order move
+    a2, b2, c2 = quad.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        det = 4 * a2 * c2 - b2 * b2
+        h00, h01, h11 = (2 * c2 / det)[:, None], (-b2 / det)[:, None], (2 * a2 / det)[:, None]
+        J = np.stack([h00 * lin[:, :, 0] + h01 * lin[:, :, 1], h01 * lin[:, :, 0] + h11 * lin[:, :, 1]], axis=1)
+        first = np.einsum("kia,ka->ki", J, theta)
+        gain = np.clip(np.hypot(*(q - pts).T) / np.hypot(*first.T), 1.0, 2.0)
+    want = J * np.where(np.isfinite(gain), gain, 1.0)[:, None, None]
+    got = np.empty((K, 2, 4))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mk.light_jacobian(quad, lin, theta, q, pts, got)
+    np.testing.assert_array_equal(got, want)
+    assert (gain[np.isfinite(gain)] > 1).any() and (gain[np.isfinite(gain)] == 1).any()
+
+    N = K + 10
+    idx = rng.permutation(N)[:K]
+    c = rng.uniform(0.0, 100.0, (K, 2))
+    shift = rng.normal(0.0, 1.0, (K, 2)) * rng.uniform(0.01, 0.4, (K, 1))
+    shift[::11] = np.nan
+    cov = rng.normal(0.0, 1.0, (K, 4, 4))
+    cov = cov @ cov.transpose(0, 2, 1) * rng.uniform(0.0001, 0.01, (K, 1, 1))
+    scov = want @ cov @ want.transpose(0, 2, 1)
+    fits = rng.random(K) < 0.5
+    win = rng.integers(2, 6, K)
+    sig0 = rng.uniform(0.01, 0.2, N)
+    out0 = rng.uniform(0.0, 100.0, (N, 2))
+    out, sig = out0.copy(), sig0.copy()
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mk.light_verdicts(idx, c, shift, scov, fits, win, 0.25, 16.0, 0.25, out, sig)
+    wo, ws = out0.copy(), sig0.copy()
+    svar = 0.5 * (scov[:, 0, 0] + scov[:, 1, 1])
+    size = np.hypot(*shift.T)
+    small = np.isfinite(size) & (size <= 0.25 * win) & np.isfinite(svar)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        sdet = scov[:, 0, 0] * scov[:, 1, 1] - scov[:, 0, 1] ** 2
+        chi2 = (scov[:, 1, 1] * shift[:, 0] ** 2 - 2 * scov[:, 0, 1] * shift[:, 0] * shift[:, 1]
+                + scov[:, 0, 0] * shift[:, 1] ** 2) / sdet
+    moves = ~(chi2 <= 16.0)
+    use = fits & small & moves
+    wo[idx[use]] = c[use] + shift[use]
+    ws[idx[use]] = np.sqrt(ws[idx[use]] ** 2 + svar[use])
+    doubt = moves & ~use
+    grown = np.sqrt(ws[idx] ** 2 + size ** 2)
+    lost = doubt & ~(grown <= 0.25)
+    grow = doubt & ~lost
+    ws[idx[grow]] = grown[grow]
+    wo[idx[lost]] = np.nan
+    ws[idx[lost]] = np.nan
+    np.testing.assert_array_equal(out, wo)
+    np.testing.assert_array_equal(sig, ws)
+    assert use.sum() > 20 and grow.sum() > 5 and lost.sum() > 5 and (~moves).sum() > 20
+
+
+def test_step_4s_predictions_are_those_of_their_numpy_definition():
+    """charuco_predictions against the NumPy it replaced, bit for bit, on boards of both
+    layouts seen through a perspective with noisy marker corners: each corner's place and
+    steps through its touching markers' homographies, averaged; where two or more touch it,
+    the homography of their corners, and where two, the midpoint of their nearest corners."""
+    from camkit._kernels import markers as mk
+    from camkit.target._homography import apply_homographies, fit_homographies
+    from camkit.target.charuco import _STEP_OFFSETS, _layout
+
+    def numpy_predictions(board, conf, homs, side, img):
+        ms, obj, _ = _layout(board)
+        N, sx, s = board.n_points, board.squares_x, board.square
+        offsets = _STEP_OFFSETS * s
+        pred_sum, pred_n, size = np.zeros((N, 5, 2)), np.zeros(N), np.zeros(N)
+        mine = ms[conf][:, None, :] + np.array([[0, 0], [1, 0], [0, 1], [1, 1]])
+        mi, ci = np.nonzero((mine >= 1).all(axis=2) & (mine[..., 0] <= sx - 1) & (mine[..., 1] <= board.squares_y - 1))
+        at = mine[mi, ci]
+        cid = (at[:, 1] - 1) * (sx - 1) + (at[:, 0] - 1)
+        np.add.at(pred_sum, cid, apply_homographies(homs[mi], (at * s)[:, None, :] + offsets))
+        np.add.at(pred_n, cid, 1)
+        np.maximum.at(size, cid, side[mi])
+        cand = np.flatnonzero(pred_n > 0)
+        five = pred_sum[cand] / pred_n[cand, None, None]
+        cxy = np.stack([cand % (sx - 1) + 1, cand // (sx - 1) + 1], axis=-1)
+        sq = ms[conf]
+        touch = ((sq[None, :, 0] >= cxy[:, None, 0] - 1) & (sq[None, :, 0] <= cxy[:, None, 0])
+                 & (sq[None, :, 1] >= cxy[:, None, 1] - 1) & (sq[None, :, 1] <= cxy[:, None, 1]))
+        count = touch.sum(axis=1)
+        for c in np.unique(count[count >= 2]):
+            rows = np.flatnonzero(count == c)
+            k2 = np.nonzero(touch[rows])[1].reshape(len(rows), c)
+            Hn = fit_homographies(obj[conf[k2]].reshape(len(rows), 4 * c, 2), img[k2].reshape(len(rows), 4 * c, 2))
+            q = apply_homographies(Hn, cxy[rows, None] * s + offsets)
+            good = np.isfinite(q).all(axis=(1, 2))
+            five[rows[good]] = q[good]
+            if c == 2:
+                own = obj[conf[k2]]
+                k = np.argmin(np.hypot(*(own - (cxy[rows, None, None] * s)).transpose(3, 0, 1, 2)), axis=2)
+                near = np.take_along_axis(img[k2], k[:, :, None, None], axis=2)[:, :, 0]
+                mid = near.mean(axis=1)
+                ok = good & np.isfinite(mid).all(axis=1)
+                five[rows[ok]] += (mid[ok] - five[rows[ok], 0])[:, None]
+        return cand, five, size
+
+    rng = np.random.default_rng(4)
+    n_mid = 0
+    for t in range(40):
+        board = Charuco(int(rng.integers(3, 12)), int(rng.integers(3, 10)), 0.03, 0.02, "DICT_6X6_250",
+                        legacy=bool(t % 3 == 0))
+        ms, obj, _ = _layout(board)
+        H = np.array([[9000.0, rng.normal(0, 500), 100.0], [rng.normal(0, 500), 9000.0, 80.0],
+                      [rng.normal(0, 3), rng.normal(0, 3), 1.0]])
+        img = apply_homographies(np.broadcast_to(H, (len(obj), 3, 3)).copy(), obj)
+        img = img + rng.normal(0.0, 0.5, img.shape)
+        conf = np.sort(rng.permutation(len(obj))[:rng.integers(1, len(obj) + 1)])
+        homs = fit_homographies(obj[conf], img[conf])
+        side = rng.uniform(10.0, 40.0, len(conf))
+        cand, five, size = numpy_predictions(board, conf, homs, side, img[conf])
+        got, got_size, touched = np.empty((board.n_points, 5, 2)), np.empty(board.n_points), np.empty(board.n_points)
+        mk.charuco_predictions(np.ascontiguousarray(ms[conf], dtype=np.int64), homs, side, np.ascontiguousarray(obj[conf]),
+                               np.ascontiguousarray(img[conf]), board.squares_x, board.squares_y, board.square,
+                               _STEP_OFFSETS * board.square, got, got_size, touched)
+        np.testing.assert_array_equal(np.flatnonzero(touched > 0), cand)
+        np.testing.assert_array_equal(got[cand], five)
+        np.testing.assert_array_equal(got_size, size)
+        assert np.isnan(np.delete(got, cand, axis=0)).all()
+        n_mid += int((touched == 2).sum())
+    assert n_mid > 50
 
 def test_thin_margins_seen_square_on_keep_their_corners():
     """Markers of 90 % of the square, squares of 20 px seen square on: margins of a pixel, under

@@ -709,3 +709,98 @@ def test_the_buffers_kept_per_thread_stay_under_their_bound():
     t.start()
     t.join()
     assert 0 < sizes[0] <= al.SCRATCH_MAX_BYTES
+
+
+def test_the_x_junction_kernels_judge_the_shades_as_numpy_does():
+    """x_corner_shades and x_shades (kernels x_junctions, x_verdicts) against their definition in
+    NumPy, bit for bit: 32 bilinear shades on the circle (a RawGrey stretched after sampling),
+    four crossings of their mean, a contrast over 0.15, opposite shades alike within a quarter
+    of it, and the middle of the darkest and brightest; a NaN shade is no junction."""
+    from camkit.target._markers import x_corner_shades, x_shades
+    from camkit.target.checkerboard import RawGrey, _sample
+
+    def numpy_shades(v):
+        sign = v > v.mean(axis=1, keepdims=True)
+        changes = (sign != np.roll(sign, 1, axis=1)).sum(axis=1)
+        lo, hi = v.min(axis=1), v.max(axis=1)
+        sym = np.abs(v - np.roll(v, 16, axis=1)).mean(axis=1) / np.maximum(hi - lo, 1e-12)
+        return (changes == 4) & (hi - lo > 0.15) & (sym < 0.25), 0.5 * (lo + hi)
+
+    rng = np.random.default_rng(12)
+    yy, xx = np.mgrid[0:60, 0:70]
+    n_x = 0
+    for _ in range(20):
+        cx, cy, ang = rng.uniform(10, 60), rng.uniform(10, 50), rng.uniform(0, np.pi)
+        u, w = np.cos(ang) * (xx - cx) + np.sin(ang) * (yy - cy), -np.sin(ang) * (xx - cx) + np.cos(ang) * (yy - cy)
+        img = ((u > 0) ^ (w > 0)) * rng.uniform(0.2, 1.0) + rng.normal(0.0, rng.uniform(0.0, 0.2), xx.shape)
+        for g in (img, RawGrey(np.clip(img * 200 + 20, 0, 255).astype(np.uint8), 1 / 200, -0.1)):
+            pts = np.stack([rng.uniform(-5, 75, 40), rng.uniform(-5, 65, 40)], axis=1)
+            pts[:5] = cx, cy
+            rho = rng.uniform(1.5, 8.0, 40)
+            ang32 = np.arange(32) * 2 * np.pi / 32
+            want = numpy_shades(_sample(g, pts[:, :1] + rho[:, None] * np.cos(ang32),
+                                        pts[:, 1:] + rho[:, None] * np.sin(ang32), "bilinear"))
+            got = x_corner_shades(g, pts, rho)
+            np.testing.assert_array_equal(got[0], want[0])
+            np.testing.assert_array_equal(got[1], want[1])
+            n_x += int(got[0].sum())
+    assert n_x > 100  # junctions judged as such, not only refusals
+    v = rng.normal(size=(50, 32))
+    v[3, 5] = np.nan
+    got, want = x_shades(v), numpy_shades(v)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert not got[0][3] and np.isnan(got[1][3])
+
+
+def test_the_pairs_votes_are_those_of_each_pairs_homography_misfit():
+    """_pair_votes (kernel pair_votes) against its definition in NumPy: each pair of markers
+    within two places of each other fitted by one homography through their eight corners
+    (fit_homographies), the pair fitting where its worst miss is under 2 px times the level's
+    factor or 0.15 of the smaller pitch; a misplaced marker and a collapsed one (no
+    homography: inf) among them."""
+    from camkit.target import Charuco
+    from camkit.target._homography import apply_homographies, fit_homographies
+    from camkit.target._markers import _pair_votes
+    from camkit.target.charuco import _layout
+
+    def numpy_votes(found, obj, grid, ids, pitch, factor):
+        agree, disagree = np.zeros(len(ids), dtype=np.int64), np.zeros(len(ids), dtype=np.int64)
+        g = grid[ids]
+        a, j = np.nonzero(np.triu(np.abs(g[:, None] - g[None]).max(axis=2) <= 2, k=1))
+        src = np.concatenate([obj[ids][a], obj[ids][j]], axis=1)
+        img = np.stack([found[m][0] for m in ids])
+        dst = np.concatenate([img[a], img[j]], axis=1)
+        with np.errstate(invalid="ignore"):
+            miss = np.hypot(*(apply_homographies(fit_homographies(src, dst), src) - dst).transpose(2, 0, 1)).max(axis=1)
+        worst = np.where(np.isfinite(miss), miss, np.inf)
+        p = np.array([pitch[m] for m in ids])
+        fits = worst < np.maximum(2.0 * factor, 0.15 * np.minimum(p[a], p[j]))
+        for both in (a, j):
+            np.add.at(agree, both[fits], 1)
+            np.add.at(disagree, both[~fits], 1)
+        return agree, disagree
+
+    rng = np.random.default_rng(3)
+    totals = np.zeros(2, dtype=np.int64)
+    for t in range(60):
+        board = Charuco(int(rng.integers(3, 12)), int(rng.integers(3, 10)), 0.04, 0.03, "DICT_6X6_250")
+        grid, obj, _ = _layout(board)
+        H = np.array([[800.0, rng.normal(0, 50), 100.0], [rng.normal(0, 50), 800.0, 80.0],
+                      [rng.normal(0, 2), rng.normal(0, 2), 1.0]])
+        img = apply_homographies(np.broadcast_to(H, (len(obj), 3, 3)).copy(), obj)
+        img += rng.normal(0.0, rng.uniform(0.1, 3.0), img.shape)
+        ids = [int(m) for m in rng.permutation(len(obj))[:rng.integers(2, len(obj) + 1)]]
+        found = {m: [img[m]] for m in ids}
+        if t % 5 == 0 and len(ids) > 2:
+            found[ids[1]] = [img[ids[0]]]  # a marker read in another's place
+        if t % 7 == 0:
+            found[ids[0]] = [np.full((4, 2), 5.0)]  # a quad of one point
+        pitch = {m: float(rng.uniform(5.0, 40.0)) for m in ids}
+        factor = int(rng.integers(1, 3))
+        got = _pair_votes(found, obj, grid, ids, pitch, factor)
+        want = numpy_votes(found, obj, grid, ids, pitch, factor)
+        np.testing.assert_array_equal(got[0], want[0])
+        np.testing.assert_array_equal(got[1], want[1])
+        totals += [want[0].sum(), want[1].sum()]
+    assert (totals > 500).all()  # pairs that fit and pairs that do not
