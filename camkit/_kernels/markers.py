@@ -1498,3 +1498,47 @@ def charuco_predictions(sq: np.ndarray, homs: np.ndarray, side: np.ndarray, obj:
             for o in range(5):
                 five[cid, o, 0] += dx
                 five[cid, o, 1] += dy
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def circle_colours(img: np.ndarray, a: float, b: float, q: np.ndarray, u: np.ndarray, v: np.ndarray,
+                   sign: np.ndarray, mid: np.ndarray, rho: np.ndarray, on_board: np.ndarray,
+                   out: np.ndarray) -> None:  # pragma: no cover - numba
+    """``camkit.target.charuco._colours_on_circle``, in its arithmetic: whether each corner
+    ``q[k]`` is darker than ``mid[k]`` along the bisectors of its black squares' sectors
+    (``u + sign v`` and its opposite) and lighter along its white squares' (``u - sign v``, its
+    opposite), at ``rho[k]`` px from it (the unit steps' sums scaled to that length; on the
+    board where ``on_board[k]``: the steps' sums times ``rho[k] / sqrt 2``, ``rho`` in
+    squares); the image ``img`` stretched by ``a * v + b``, bilinear."""
+    dx = np.empty(4)
+    dy = np.empty(4)
+    for k in range(q.shape[0]):
+        s = sign[k]
+        if on_board[k]:
+            px, py = u[k, 0] + s * v[k, 0], u[k, 1] + s * v[k, 1]
+            mx, my = u[k, 0] - s * v[k, 0], u[k, 1] - s * v[k, 1]
+            f = rho[k] / math.sqrt(2.0)
+            dx[0], dy[0] = px * f, py * f
+            dx[1], dy[1] = -px * f, -py * f
+            dx[2], dy[2] = mx * f, my * f
+            dx[3], dy[3] = -mx * f, -my * f
+        else:
+            lu = max(math.hypot(u[k, 0], u[k, 1]), 1e-12)
+            lv = max(math.hypot(v[k, 0], v[k, 1]), 1e-12)
+            ux, uy = u[k, 0] / lu, u[k, 1] / lu
+            vx, vy = v[k, 0] / lv, v[k, 1] / lv
+            px, py = ux + s * vx, uy + s * vy
+            mx, my = ux - s * vx, uy - s * vy
+            dx[0], dy[0] = px, py
+            dx[1], dy[1] = -px, -py
+            dx[2], dy[2] = mx, my
+            dx[3], dy[3] = -mx, -my
+            for i in range(4):
+                f = rho[k] / max(math.hypot(dx[i], dy[i]), 1e-12)
+                dx[i] *= f
+                dy[i] *= f
+        ok = True
+        for i in range(4):
+            val = bilinear(img, q[k, 0] + dx[i], q[k, 1] + dy[i]) * a + b
+            ok = ok and (val < mid[k] if i < 2 else val > mid[k])
+        out[k] = ok

@@ -1074,21 +1074,18 @@ def _colours_on_circle(board: Charuco, grey: np.ndarray, cand: np.ndarray, q: np
     alternating sectors a few pixels from the corner; it is dark towards the marker's border,
     where the corner has a white square. ``on_board``: the corners whose circle is on the
     board (:func:`_board_shades`, ``rho`` in squares), read at 45 degrees on it."""
-    sign = _square_signs(board, cand)[:, None]
     # Along each sector's bisector (the unit steps' sum: a sheared square's diagonal runs close
-    # to its long side), towards the black squares (two), then the white ones.
-    un = u / np.maximum(np.hypot(*u.T), 1e-12)[:, None]
-    vn = v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
-    diag = np.stack([un + sign * vn, -(un + sign * vn), un - sign * vn, -(un - sign * vn)], axis=1)
-    diag *= (rho[:, None] / np.maximum(np.hypot(*diag.transpose(2, 0, 1)), 1e-12))[..., None]
-    if on_board is not None and on_board.any():
-        b = np.flatnonzero(on_board)
-        ub, vb = u[b], v[b]
-        sb = sign[b]
-        diag[b] = np.stack([ub + sb * vb, -(ub + sb * vb), ub - sb * vb, -(ub - sb * vb)], axis=1) * (
-            rho[b, None, None] / np.sqrt(2.0))
-    on = _sample(grey, q[:, None, 0] + diag[..., 0], q[:, None, 1] + diag[..., 1], "bilinear")
-    return (on[:, :2].max(axis=1) < mid) & (on[:, 2:].min(axis=1) > mid)
+    # to its long side), towards the black squares (two), then the white ones (kernel
+    # :func:`~camkit._kernels.markers.circle_colours`).
+    img, a, b = _stretched(grey)
+    out = np.empty(len(cand), dtype=bool)
+    markers_kernels.circle_colours(img, a, b, np.ascontiguousarray(q, dtype=np.float64),
+                                   np.ascontiguousarray(u, dtype=np.float64), np.ascontiguousarray(v, dtype=np.float64),
+                                   _square_signs(board, cand), np.ascontiguousarray(mid, dtype=np.float64),
+                                   np.ascontiguousarray(np.broadcast_to(rho, (len(cand),)), dtype=np.float64),
+                                   np.zeros(len(cand), dtype=bool) if on_board is None else np.asarray(on_board, bool),
+                                   out)
+    return out
 
 
 #: A white margin narrower than this (px, across it) beside a corner lets the saddle fit see

@@ -1172,6 +1172,44 @@ def test_step_4s_predictions_are_those_of_their_numpy_definition():
         n_mid += int((touched == 2).sum())
     assert n_mid > 50
 
+
+def test_the_circles_colours_are_those_of_their_numpy_definition():
+    """_colours_on_circle (kernel circle_colours) against the NumPy it replaced, bit for bit:
+    dark along the bisectors of the black squares' sectors and light along the white ones',
+    at the circle's radius (or on the board's circle, rho in squares), on a float image and a
+    RawGrey, sheared steps and both chiralities."""
+    from camkit.target.checkerboard import RawGrey, _sample
+
+    def numpy_colours(board, grey, cand, q, u, v, mid, rho, on_board):
+        sign = _square_signs(board, cand)[:, None]
+        un = u / np.maximum(np.hypot(*u.T), 1e-12)[:, None]
+        vn = v / np.maximum(np.hypot(*v.T), 1e-12)[:, None]
+        diag = np.stack([un + sign * vn, -(un + sign * vn), un - sign * vn, -(un - sign * vn)], axis=1)
+        diag *= (rho[:, None] / np.maximum(np.hypot(*diag.transpose(2, 0, 1)), 1e-12))[..., None]
+        b = np.flatnonzero(on_board)
+        ub, vb, sb = u[b], v[b], sign[b]
+        diag[b] = np.stack([ub + sb * vb, -(ub + sb * vb), ub - sb * vb, -(ub - sb * vb)], axis=1) * (
+            rho[b, None, None] / np.sqrt(2.0))
+        on = _sample(grey, q[:, None, 0] + diag[..., 0], q[:, None, 1] + diag[..., 1], "bilinear")
+        return (on[:, :2].max(axis=1) < mid) & (on[:, 2:].min(axis=1) > mid)
+
+    rng = np.random.default_rng(6)
+    board = Charuco(7, 6, 0.03, 0.02, "DICT_6X6_250")
+    img = rng.random((80, 90))
+    n_true = 0
+    for grey in (img, RawGrey((img * 255).astype(np.uint8), 1 / 255, 0.0)):
+        for _ in range(20):
+            K = 50
+            cand = rng.integers(0, board.n_points, K)
+            q = rng.uniform(5.0, 75.0, (K, 2))
+            u, v = rng.normal(0.0, 10.0, (K, 2)), rng.normal(0.0, 10.0, (K, 2))
+            mid, rho = rng.uniform(0.2, 0.8, K), rng.uniform(1.5, 6.0, K)
+            on_board = rng.random(K) < 0.3
+            got = _colours_on_circle(board, grey, cand, q, u, v, mid, rho, on_board)
+            np.testing.assert_array_equal(got, numpy_colours(board, grey, cand, q, u, v, mid, rho, on_board))
+            n_true += int(got.sum())
+    assert n_true > 30
+
 def test_thin_margins_seen_square_on_keep_their_corners():
     """Markers of 90 % of the square, squares of 20 px seen square on: margins of a pixel, under
     the 1.35 px below which a fit's sigma must pass without its residuals' help, and every corner
