@@ -1349,6 +1349,16 @@ def x_junctions(img: np.ndarray, a: float, b: float, pts: np.ndarray, rho: np.nd
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _mapped(H: np.ndarray, x: float, y: float) -> tuple[float, float]:  # pragma: no cover - numba
+    """(x, y) through the homography ``H`` (3, 3), each row's sum as NumPy's einsum makes it
+    (``h0 x + h2``, then ``+ h1 y``: :func:`camkit.target._homography.apply_homographies`)."""
+    u = (H[0, 0] * x + H[0, 2] * 1.0) + H[0, 1] * y
+    v = (H[1, 0] * x + H[1, 2] * 1.0) + H[1, 1] * y
+    w = (H[2, 0] * x + H[2, 2] * 1.0) + H[2, 1] * y
+    return u / w, v / w
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def pair_votes(obj: np.ndarray, img: np.ndarray, grid: np.ndarray, pitch: np.ndarray, floor: float,
                agree: np.ndarray, disagree: np.ndarray) -> None:  # pragma: no cover - numba
     """For each of n markers (``obj`` (n, 4, 2): its corners on the board; ``img`` (n, 4, 2): in
@@ -1357,8 +1367,7 @@ def pair_votes(obj: np.ndarray, img: np.ndarray, grid: np.ndarray, pitch: np.nda
     not (``camkit.target._markers._pair_votes``): the homography of both markers' eight corners
     (:func:`_fit_homography`) misses none by ``floor`` px or 0.15 of the smaller pitch (the
     worst miss the largest distance, a homography that sends a point to infinity or none at
-    all missing by inf). The points mapped as NumPy's einsum sums them (``h0 x + h2``, then
-    ``+ h1 y``)."""
+    all missing by inf; the points mapped by :func:`_mapped`)."""
     n = obj.shape[0]
     src = np.empty((8, 2))
     dst = np.empty((8, 2))
@@ -1379,11 +1388,8 @@ def pair_votes(obj: np.ndarray, img: np.ndarray, grid: np.ndarray, pitch: np.nda
             _fit_homography(src, dst, H)
             worst = 0.0
             for p in range(8):
-                x, y = src[p, 0], src[p, 1]
-                u = (H[0, 0] * x + H[0, 2] * 1.0) + H[0, 1] * y
-                v = (H[1, 0] * x + H[1, 2] * 1.0) + H[1, 1] * y
-                w = (H[2, 0] * x + H[2, 2] * 1.0) + H[2, 1] * y
-                miss = math.hypot(u / w - dst[p, 0], v / w - dst[p, 1])
+                px, py = _mapped(H, src[p, 0], src[p, 1])
+                miss = math.hypot(px - dst[p, 0], py - dst[p, 1])
                 if not math.isfinite(miss):  # (NaN: no homography, or a point sent to infinity)
                     worst = np.inf
                     break
@@ -1394,16 +1400,6 @@ def pair_votes(obj: np.ndarray, img: np.ndarray, grid: np.ndarray, pitch: np.nda
             else:
                 disagree[a] += 1
                 disagree[j] += 1
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _mapped(H: np.ndarray, x: float, y: float) -> tuple[float, float]:  # pragma: no cover - numba
-    """(x, y) through the homography ``H`` (3, 3), each row's sum as NumPy's einsum makes it
-    (``h0 x + h2``, then ``+ h1 y``: :func:`camkit.target._homography.apply_homographies`)."""
-    u = (H[0, 0] * x + H[0, 2] * 1.0) + H[0, 1] * y
-    v = (H[1, 0] * x + H[1, 2] * 1.0) + H[1, 1] * y
-    w = (H[2, 0] * x + H[2, 2] * 1.0) + H[2, 1] * y
-    return u / w, v / w
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
