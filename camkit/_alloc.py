@@ -3,13 +3,15 @@
 from __future__ import annotations
 
 import math
+import mmap
+import sys
 import threading
 
 import numpy as np
 
 from camkit._kernels import remap as remap_kernels
 
-__all__ = ["new_image", "scratch"]
+__all__ = ["new_image", "scratch", "work_array"]
 
 
 def new_image(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
@@ -18,6 +20,35 @@ def new_image(shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
     page faults on one core. benchmarks/notes.md has the measurements that keep it."""
     out = np.empty(shape, dtype=dtype)
     remap_kernels.touch_pages(out.reshape(-1).view(np.uint8))
+    return out
+
+
+#: NumPy advises huge pages for every array of this many bytes or more.
+_HUGE_ADVICE_BYTES = 1 << 22
+
+
+def work_array(shape: tuple[int, ...], dtype: np.dtype | type, touched: bool = False) -> np.ndarray:
+    """A work array (contents undefined); one of :data:`_HUGE_ADVICE_BYTES` or more on memory of
+    its own that is not advised for huge pages, unmapped when the array goes.
+
+    NumPy advises huge pages for every array of 4 MiB or more (``MADV_HUGEPAGE``). Where the
+    kernel's ``transparent_hugepage/defrag`` setting is ``madvise`` (the common default) and no
+    huge page is free, each first touch of such memory waits while the kernel compacts memory
+    (numpy/numpy issue 31590). A detection's work arrays are fresh memory on every call (glibc
+    maps blocks of over 32 MiB afresh and unmaps them when freed: mallopt(3)), so the wait
+    comes back call after call; on small pages their first touch costs a little more where
+    huge pages are free, and the same every time (a 12 MP and a 2 MP checkerboard detection
+    measured: benchmarks/notes.md, fifty-sixth session). Smaller arrays, and other systems,
+    get ``np.empty``. ``touched``: the pages faulted in by both cores first
+    (:func:`new_image`)."""
+    dt = np.dtype(dtype)
+    n = math.prod(shape) * dt.itemsize
+    if n < _HUGE_ADVICE_BYTES or not sys.platform.startswith("linux"):
+        out = np.empty(shape, dtype=dt)
+    else:
+        out = np.frombuffer(mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE), dtype=dt).reshape(shape)
+    if touched:
+        remap_kernels.touch_pages(out.reshape(-1).view(np.uint8))
     return out
 
 
@@ -35,8 +66,8 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type, touched: bool = Fals
     allocation's pages are faulted in as they are first written, inside the kernel that writes
     them (benchmarks/notes.md, forty-sixth session, has the measure). Grows where a larger one
     is asked for. A name is one array at a time on its thread: the caller's use of it ends before the
-    name is asked for again there. What does not fit is made afresh (``touched``: by
-    :func:`new_image`)."""
+    name is asked for again there. What does not fit is made afresh (:func:`work_array`; ``touched``:
+    its pages faulted in by both cores)."""
     n = math.prod(shape) * np.dtype(dtype).itemsize
     bufs = getattr(_SCRATCH, "bufs", None)
     if bufs is None:
@@ -45,6 +76,6 @@ def scratch(name: str, shape: tuple[int, ...], dtype: type, touched: bool = Fals
     if buf is None or buf.size < n:
         kept = sum(b.size for k, b in bufs.items() if k != name)
         if kept + n > SCRATCH_MAX_BYTES:
-            return new_image(shape, np.dtype(dtype)) if touched else np.empty(shape, dtype=dtype)
+            return work_array(shape, dtype, touched)
         buf = bufs[name] = np.empty(n, dtype=np.uint8)
     return buf[:n].view(dtype).reshape(shape)

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial import cKDTree
 
-from camkit._alloc import scratch
+from camkit._alloc import scratch, work_array
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import markers as markers_kernels
 from camkit.target._homography import apply_homographies, fit_homographies
@@ -534,7 +534,7 @@ class _Pyramid:
             if k - 1 not in self._levels and k - 2 in self._levels:
                 src = self._levels[k - 2]
                 H, W = src.shape
-                out = np.empty((H // 4, W // 4))
+                out = work_array((H // 4, W // 4), np.float64)
                 if isinstance(src, RawGrey):
                     detect_kernels.quarter_mean(src.raw, src.a, src.b, out)
                 else:

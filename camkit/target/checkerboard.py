@@ -8,7 +8,7 @@ from typing import Self
 
 import numpy as np
 
-from camkit._alloc import new_image, scratch
+from camkit._alloc import scratch, work_array
 from camkit._kernels import detect as detect_kernels
 from camkit._kernels import lattice as lattice_kernels
 from camkit._kernels import markers as markers_kernels
@@ -204,7 +204,7 @@ def _to_grey(image: np.ndarray, lazy: bool = False, with_step: bool = False) -> 
     inv = 1.0 / max(float(hi - lo), 1e-12)
     if lazy and img.dtype == np.uint8 and img3.shape[2] < 3:
         return RawGrey(np.ascontiguousarray(img3[:, :, 0]), scale * inv, -float(lo) * inv)  # type: ignore[return-value]
-    g = new_image(img.shape[:2], np.dtype(np.float64))
+    g = work_array(img.shape[:2], np.float64, touched=True)
     detect_kernels.grey_mean(img3, scale, float(lo), inv, g)
     if with_step:
         return g, (scale * inv if img.dtype.kind == "u" else 0.0)  # type: ignore[return-value]
@@ -596,7 +596,7 @@ def _grid_spacing(corners: np.ndarray, cols: int) -> float:
 
 def _half(img: np.ndarray) -> np.ndarray:
     """The 2x2 mean: pixel (x, y) of the half image covers full-resolution pixels 2x..2x+1."""
-    out = np.empty((img.shape[0] // 2, img.shape[1] // 2))
+    out = work_array((img.shape[0] // 2, img.shape[1] // 2), np.float64)
     if isinstance(img, RawGrey):
         detect_kernels.half_mean(img.raw, out)
         out *= img.a
@@ -1550,7 +1550,7 @@ class _SmoothedCrop:
         if box is None or not (box[0] <= want[0] and box[1] <= want[1] and box[2] >= want[2] and box[3] >= want[3]):
             if box is not None:
                 want = (min(box[0], want[0]), min(box[1], want[1]), max(box[2], want[2]), max(box[3], want[3]))
-            self.img = np.empty((max(want[3] - want[1], 0), max(want[2] - want[0], 0)))
+            self.img = work_array((max(want[3] - want[1], 0), max(want[2] - want[0], 0)), np.float64)
             if self.img.size:
                 detect_kernels.gaussian_blur(self.grey, self.sigma, self.img, want[0], want[1])
             self.box = want
@@ -1705,9 +1705,9 @@ def _x_corners(grey: np.ndarray, noise: float | None = None, weak: bool = False,
     over :data:`_WEAK_CONTRAST` of it (and the noise's floor) are returned too, and an eighth
     output says which candidates pass the floor (only those seed a lattice). ``floors``: the
     response floors tried in turn (:data:`_RESPONSE_FLOORS`)."""
-    s = np.empty_like(grey)
+    s = work_array(grey.shape, np.float64)
     detect_kernels.gaussian_blur(grey, _SIGMA, s)
-    R = np.empty_like(s)
+    R = work_array(s.shape, np.float64)
     detect_kernels.saddle_response(s, R)
     none = np.zeros((0, 2))
     rmax = float(R.max())
