@@ -297,7 +297,7 @@ def box_means(img: np.ndarray, cx: np.ndarray, cy: np.ndarray, half: np.ndarray,
         clipped[i] = c / n
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, float]:  # pragma: no cover - numba
     """The bilinear interpolant of ``img`` at (x, y) and its central differences, (value, d/dx,
     d/dy): the bilinear interpolant of the image's central-difference images. The caller keeps
@@ -306,24 +306,43 @@ def _bilinear_grad(img: np.ndarray, x: float, y: float) -> tuple[float, float, f
     y0 = math.floor(y)
     fx = x - x0
     fy = y - y0
-    # The bilinear weights of the 2x2 cell, applied to the value and to the central differences
-    # (pixels read in place: a 4x4 scratch array here was a heap allocation per sample).
+    # The bilinear weights of the 2x2 cell, applied to the value and to the central differences,
+    # the cell's twelve pixels read once each (read in place for each of the four taps, twenty
+    # reads, it was the slower: benchmarks/notes.md, fifty-sixth session); the same sums in the
+    # same order.
+    ix = int(x0)
+    iy = int(y0)
+    r0 = img[iy - 1]
+    r1 = img[iy]
+    r2 = img[iy + 1]
+    r3 = img[iy + 2]
+    p01, p02 = r0[ix], r0[ix + 1]
+    p10, p11, p12, p13 = r1[ix - 1], r1[ix], r1[ix + 1], r1[ix + 2]
+    p20, p21, p22, p23 = r2[ix - 1], r2[ix], r2[ix + 1], r2[ix + 2]
+    p31, p32 = r3[ix], r3[ix + 1]
     val = 0.0
     gx = 0.0
     gy = 0.0
-    for j in range(2):
-        wy = fy if j == 1 else 1.0 - fy
-        yj = y0 + j
-        for i in range(2):
-            w = wy * (fx if i == 1 else 1.0 - fx)
-            xi = x0 + i
-            val += w * img[yj, xi]
-            gx += w * 0.5 * (img[yj, xi + 1] - img[yj, xi - 1])
-            gy += w * 0.5 * (img[yj + 1, xi] - img[yj - 1, xi])
+    w = (1.0 - fy) * (1.0 - fx)
+    val += w * p11
+    gx += w * 0.5 * (p12 - p10)
+    gy += w * 0.5 * (p21 - p01)
+    w = (1.0 - fy) * fx
+    val += w * p12
+    gx += w * 0.5 * (p13 - p11)
+    gy += w * 0.5 * (p22 - p02)
+    w = fy * (1.0 - fx)
+    val += w * p21
+    gx += w * 0.5 * (p22 - p20)
+    gy += w * 0.5 * (p31 - p11)
+    w = fy * fx
+    val += w * p22
+    gx += w * 0.5 * (p23 - p21)
+    gy += w * 0.5 * (p32 - p12)
     return val, gx, gy
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", inline="always")
 def _mirrored_pair(img: np.ndarray, px: float, py: float, a: np.ndarray, b: np.ndarray, shade: np.ndarray, k: int,
                    i: int) -> tuple[float, float, float]:  # pragma: no cover - numba
     """Pair ``i`` of point ``k`` of :func:`symmetry_refine` at (px, py): its residual (the
@@ -534,10 +553,13 @@ def symmetry_refine(img: np.ndarray, taps: np.ndarray, p0: np.ndarray, a: np.nda
                     shade: np.ndarray, iters: int, tol: float, out: np.ndarray, cov: np.ndarray, wres: np.ndarray,
                     normal: np.ndarray, sens: np.ndarray) -> None:
     """Each point moved to its point of symmetry (kernel ``_make_symmetry_refine``), serial
-    where small (:data:`PARALLEL_MIN_NS`; the work counted in pairs times steps)."""
-    work = 50.0 * float(np.sum(m)) * iters
-    (_symmetry_refine_parallel if work >= PARALLEL_MIN_NS else _symmetry_refine_serial)(
+    where small (:data:`PARALLEL_MIN_NS`; the work counted in pairs times steps) or for one
+    point (the loop is over the points)."""
+    work = 20.0 * float(np.sum(m)) * iters
+    (_symmetry_refine_parallel if work >= PARALLEL_MIN_NS and len(p0) > 1 else _symmetry_refine_serial)(
         img, taps, p0, a, b, m, shade, iters, tol, out, cov, wres, normal, sens)
+
+
 def _make_saddle_fit(PARALLEL: int):
     """:func:`saddle_fit`'s kernel, run on the OpenMP pool where ``PARALLEL`` is 1."""
 
