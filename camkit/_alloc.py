@@ -46,7 +46,12 @@ def work_array(shape: tuple[int, ...], dtype: np.dtype | type, touched: bool = F
     if n < _HUGE_ADVICE_BYTES or not sys.platform.startswith("linux"):
         out = np.empty(shape, dtype=dt)
     else:
-        out = np.frombuffer(mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE), dtype=dt).reshape(shape)
+        try:
+            buf = mmap.mmap(-1, n, flags=mmap.MAP_PRIVATE)
+        except (OSError, OverflowError) as e:  # as np.empty says it
+            raise MemoryError(f"Unable to allocate {n / 2**30:.2f} GiB for a work array with shape {tuple(shape)} "
+                              f"and data type {dt} ({e})") from e
+        out = np.frombuffer(buf, dtype=dt).reshape(shape)
     if touched:
         remap_kernels.touch_pages(out.reshape(-1).view(np.uint8))
     return out

@@ -35,18 +35,28 @@ def _page_inside(a: np.ndarray) -> int:
 def test_a_large_work_array_is_ordinary_memory_of_its_shape():
     """Shape, dtype, writable, C-contiguous, aligned to a page; small ones are ``np.empty``'s;
     ``touched`` leaves it usable; scratch hands out one where its bound is passed."""
-    for shape, dt in (((3000, 4000), np.float64), ((3000, 4000), np.uint8), ((7,), np.int64), ((0, 5), np.float64)):
+    for shape, dt in (((1500, 1000), np.float64), ((3000, 4000), np.uint8), ((7,), np.int64), ((0, 5), np.float64)):
         a = work_array(shape, dt, touched=True)
         assert a.shape == shape and a.dtype == dt and a.flags.writeable and a.flags.c_contiguous
         a[...] = 3
         assert (a == 3).all()
-    big = work_array((3000, 4000), np.float64)
+    big = work_array((1500, 1000), np.float64)
     assert big.ctypes.data % 4096 == 0
     assert work_array((10, 10), np.float64).base is None  # np.empty's own
     assert big.nbytes >= _HUGE_ADVICE_BYTES
     assert work_array((1000, 500), np.float64).base is None  # 4 MB: under NumPy's advice
-    huge = scratch("test-alloc", (5000, 5000), np.float64)  # past SCRATCH_MAX_BYTES: made afresh
-    assert huge.shape == (5000, 5000)
+    huge = scratch("test-alloc", (2000, 2000), np.float64)  # past SCRATCH_MAX_BYTES: made afresh
+    assert huge.shape == (2000, 2000)
+    if sys.platform.startswith("linux"):
+        assert huge.base is not None  # a work array's own mapping
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux only: elsewhere np.empty's own error")
+def test_a_work_array_too_large_for_memory_is_a_memory_error():
+    """As ``np.empty`` says it: MemoryError, naming the size and shape (not the mapping's OSError)."""
+    for shape in ((2**20, 2**20), (2**40, 2**30)):  # 8 TiB; past any address space
+        with pytest.raises(MemoryError, match="work array with shape"):
+            work_array(shape, np.float64)
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="Linux only: /proc/self/smaps and MADV_HUGEPAGE")
